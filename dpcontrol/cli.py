@@ -1,0 +1,12 @@
+"""``dpcontrol`` command line (composition layer)."""
+
+from __future__ import annotations
+
+import sys
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``dpcontrol`` console script."""
+    del argv
+    print("dpcontrol: not yet implemented", file=sys.stderr)
+    return 2

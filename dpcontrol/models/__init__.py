@@ -1,0 +1,1 @@
+"""Vessel data, thruster descriptions, frames and config validation (pure; shared with the plant)."""

@@ -1,0 +1,63 @@
+"""The layer rule of DESIGN.md §1, checked on the source: imports point down only.
+
+* the numeric core has no I/O, no clock, no threads, no logging set-up;
+* interfaces never import the controller's runtime or algorithms;
+* the plant never imports the controller (it may use the shared vessel data in
+  ``dpcontrol.models``); only ``sim_plant.bench`` composes plant and controller.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+CORE = ["dpcontrol/models", "dpcontrol/estimation", "dpcontrol/guidance", "dpcontrol/control",
+        "dpcontrol/allocation"]
+CORE_FORBIDDEN = {"time", "os", "sys", "socket", "threading", "logging", "subprocess", "asyncio", "io",
+                  "serial", "can", "zenoh", "pymavlink", "yaml", "datetime", "random", "pathlib",
+                  "interfaces", "sim_plant", "dpcontrol.runtime", "dpcontrol.cli"}
+CONTROLLER = {"dpcontrol.estimation", "dpcontrol.guidance", "dpcontrol.control", "dpcontrol.allocation",
+              "dpcontrol.runtime", "dpcontrol.cli"}
+
+
+def _imports(path: Path) -> list[str]:
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    names: list[str] = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names.extend(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names.append(node.module)
+    return names
+
+
+def _violations(files: list[Path], forbidden: set[str]) -> list[str]:
+    found = []
+    for path in files:
+        for name in _imports(path):
+            if any(name == bad or name.startswith(bad + ".") for bad in forbidden):
+                found.append(f"{path.relative_to(ROOT)} imports {name}")
+    return found
+
+
+def _files(*folders: str) -> list[Path]:
+    return sorted(p for folder in folders for p in (ROOT / folder).rglob("*.py"))
+
+
+@pytest.mark.parametrize("folder", CORE)
+def test_core_has_no_io_clock_or_upper_layers(folder: str) -> None:
+    assert _violations(_files(folder), CORE_FORBIDDEN) == []
+
+
+def test_interfaces_do_not_import_the_controller() -> None:
+    assert _violations(_files("interfaces"), CONTROLLER | {"sim_plant"}) == []
+
+
+def test_plant_never_imports_the_controller() -> None:
+    files = [p for p in _files("sim_plant") if "bench" not in p.relative_to(ROOT).parts]
+    assert files, "sim_plant has no sources"
+    assert _violations(files, CONTROLLER) == []
