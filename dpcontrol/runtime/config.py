@@ -1,0 +1,450 @@
+"""The daemon's configuration: one YAML file per vessel → frozen dataclasses, validated on load.
+
+Every error names the file, the key path and what was expected; the daemon refuses to start on an
+invalid file (``dpcontrol check-config FILE`` runs the same validation). The sections are
+documented in the README ("Configuration reference") and exemplified in ``deploy/config/``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from dpcontrol.models.schema import ConfigError, Section, parse_list
+from dpcontrol.models.vessels import VesselData, vessel_from_config
+from dpcontrol.runtime.hub import HubConfig, SensorConfig, SensorKind
+
+PROTOCOLS = ("nmea0183", "nmea2000", "mavlink")
+MODES = ("standby", "auto_heading", "auto_position")
+FALLBACKS = ("hold_heading", "zero_surge_sway", "standby")
+VESSEL_ID_PATTERN = re.compile(r"^[A-Za-z0-9_\-]{1,64}$")
+
+
+@dataclass(frozen=True)
+class TransportConfig:
+    """One physical input: a serial port, a CAN bus or a MAVLink link.
+
+    ``settings`` holds the protocol's own keys: nmea0183 ``port, baud``; nmea2000 ``interface,
+    channel`` (+ ``bitrate`` etc. passed to python-can); mavlink ``url`` (+ ``signing_key_hex``).
+    """
+
+    name: str
+    protocol: str
+    settings: Mapping[str, Any]
+
+
+@dataclass(frozen=True)
+class SensorRoute:
+    """How a sensor's messages are picked out of its transport's traffic."""
+
+    sensor: SensorConfig
+    transport: str
+    talker: str | None = None  # NMEA 0183 talker ID filter (e.g. "GP", "HE")
+    sentences: tuple[str, ...] = ()  # NMEA 0183 sentence types used (default per kind)
+    source_address: int | None = None  # NMEA 2000 source address filter
+    system_id: int | None = None  # MAVLink system ID filter
+
+
+@dataclass(frozen=True)
+class EstimatorSettings:
+    """Wave filter selection (mapped onto :mod:`dpcontrol.estimation`)."""
+
+    kind: str = "mmae"
+    omegas_rad_s: tuple[float, ...] = (0.3, 0.45, 0.6, 0.75, 0.9, 1.05, 1.2, 1.35)
+    zeta: float = 0.1
+    options: Mapping[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class GuidanceSettings:
+    """Reference model: natural periods [s], damping, limits."""
+
+    natural_period_s: tuple[float, float, float] | None = None
+    damping: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    max_speed_mps: float | None = None
+    max_yaw_rate_radps: float | None = None
+    max_acceleration_mps2: float | None = None
+    max_yaw_acceleration_radps2: float | None = None
+
+
+@dataclass(frozen=True)
+class ControlSettings:
+    """Controller selection and optional gains (mapped onto :mod:`dpcontrol.control`)."""
+
+    kind: str = "mrac"
+    options: Mapping[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class FallbackSettings:
+    """What the loop does when references are lost (issue 8 §5, §7)."""
+
+    dead_reckoning_limit_s: float = 60.0
+    position_loss: str = "hold_heading"
+    heading_loss_limit_s: float = 5.0
+    heading_loss: str = "standby"
+
+
+@dataclass(frozen=True)
+class ThrusterMonitorSettings:
+    """Thruster fault detection from drive feedback (issue 8 §10)."""
+
+    feedback_timeout_s: float = 2.0
+    mismatch_fraction: float = 0.25
+    mismatch_persist_s: float = 5.0
+    shortfall_fraction: float = 0.1
+    shortfall_persist_s: float = 10.0
+
+
+@dataclass(frozen=True)
+class ZenohSettings:
+    """Zenoh session: peer mode, explicit endpoints, multicast scouting off (DESIGN §5)."""
+
+    mode: str = "peer"
+    listen: tuple[str, ...] = ()
+    connect: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class RecorderSettings:
+    """Black-box recorder (issue 9)."""
+
+    path: str | None = None
+    max_file_mb: float = 256.0
+    max_total_mb: float = 4096.0
+    rotate_s: float = 3600.0
+    flush_s: float = 1.0
+    queue_size: int = 10000
+
+
+@dataclass(frozen=True)
+class StateSettings:
+    """Persisted estimator/controller state for a bumpless restart (issue 9 §4)."""
+
+    path: str | None = None
+    period_s: float = 1.0
+    max_age_s: float = 30.0
+
+
+@dataclass(frozen=True)
+class DaemonConfig:
+    """The whole validated configuration of ``dpcontrol run``."""
+
+    vessel_id: str
+    vessel: VesselData
+    datum: tuple[float, float] | None
+    rate_hz: float
+    initial_mode: str
+    auto_engage_s: float | None
+    transports: tuple[TransportConfig, ...]
+    routes: tuple[SensorRoute, ...]
+    estimator: EstimatorSettings
+    guidance: GuidanceSettings
+    control: ControlSettings
+    allocation: Mapping[str, Any]
+    hub: HubConfig
+    fallback: FallbackSettings
+    thruster_monitor: ThrusterMonitorSettings
+    zenoh: ZenohSettings
+    recorder: RecorderSettings
+    state: StateSettings
+    source_text: str = ""
+    source_file: str | None = None
+
+    @property
+    def sample_time_s(self) -> float:
+        return 1.0 / self.rate_hz
+
+    @property
+    def sensors(self) -> tuple[SensorConfig, ...]:
+        return tuple(route.sensor for route in self.routes)
+
+    @property
+    def config_hash(self) -> str:
+        """SHA-256 of the configuration text (recorded with every log, published as config)."""
+        return hashlib.sha256(self.source_text.encode("utf-8")).hexdigest()
+
+
+Triple = tuple[float, float, float]
+
+
+def _tuple3(section: Section, key: str, default: Triple | None) -> Triple | None:
+    if not section.has(key):
+        section.raw(key, None)
+        return default
+    values = section.vector(key, 3)
+    return (float(values[0]), float(values[1]), float(values[2]))
+
+
+def _parse_transport(section: Section) -> TransportConfig:
+    name = section.string("name")
+    protocol = section.string("protocol", choices=PROTOCOLS)
+    settings: dict[str, Any] = {}
+    if protocol == "nmea0183":
+        settings["port"] = section.string("port")
+        settings["baud"] = section.integer("baud", 4800, minimum=300)
+    elif protocol == "nmea2000":
+        settings["interface"] = section.string("interface")
+        channel = section.raw("channel", None)
+        if channel is not None and not isinstance(channel, (str, int)):
+            raise ConfigError(f"{section.path}.channel", "a string or integer channel", channel)
+        settings["channel"] = channel
+        options = section.section("options")
+        settings["options"] = dict(options.data)
+        options._read.update(options.data)  # passed through to python-can
+    else:
+        settings["url"] = section.string("url")
+        key_hex = section.raw("signing_key_hex", None)
+        if key_hex is not None and (not isinstance(key_hex, str) or not re.fullmatch(r"[0-9a-fA-F]{64}", key_hex)):
+            raise ConfigError(f"{section.path}.signing_key_hex", "64 hexadecimal digits (a 32-byte key)", key_hex)
+        settings["signing_key_hex"] = key_hex
+        settings["heartbeat_timeout_s"] = section.number("heartbeat_timeout_s", 5.0, minimum=0.5)
+    section.finish()
+    return TransportConfig(name, protocol, settings)
+
+
+def _parse_route(section: Section, transports: Mapping[str, TransportConfig]) -> SensorRoute:
+    name = section.string("name")
+    kind = SensorKind(section.string("kind", choices=[k.value for k in SensorKind]))
+    transport = section.string("transport", choices=list(transports))
+    rate = section.number("rate_hz", 1.0 if kind is SensorKind.POSITION else 10.0, minimum=0.0,
+                          exclusive_minimum=True, maximum=100.0)
+    if kind is SensorKind.POSITION:
+        sigma = section.number("sigma_m", 1.0, minimum=0.0, exclusive_minimum=True)
+        arm = section.vector("lever_arm_m", 2, [0.0, 0.0])
+        lever = (float(arm[0]), float(arm[1]))
+    else:
+        sigma = math.radians(section.number("sigma_deg", 0.2, minimum=0.0, exclusive_minimum=True))
+        lever = (0.0, 0.0)
+    protocol = transports[transport].protocol
+    talker = section.raw("talker", None)
+    if talker is not None and (protocol != "nmea0183" or not isinstance(talker, str) or len(talker) != 2):
+        raise ConfigError(f"{section.path}.talker", "a 2-letter NMEA 0183 talker ID on an nmea0183 transport", talker)
+    sentences: tuple[str, ...] = ()
+    if section.has("sentences"):
+        if protocol != "nmea0183":
+            raise ConfigError(f"{section.path}.sentences", "sentences only on an nmea0183 transport", protocol)
+        sentences = tuple(s for _, s in section.items("sentences", min_items=1))
+        known = ("GGA", "GNS", "RMC", "GST", "HDT", "THS", "ROT")
+        for where, value in section.items("sentences"):
+            if value not in known:
+                raise ConfigError(where, "one of " + ", ".join(known), value)
+    source_address = None
+    if section.has("source_address"):
+        if protocol != "nmea2000":
+            raise ConfigError(f"{section.path}.source_address", "source_address only on an nmea2000 transport",
+                              protocol)
+        source_address = section.integer("source_address", minimum=0, maximum=253)
+    system_id = None
+    if section.has("system_id"):
+        if protocol != "mavlink":
+            raise ConfigError(f"{section.path}.system_id", "system_id only on a mavlink transport", protocol)
+        system_id = section.integer("system_id", minimum=1, maximum=255)
+    section.finish()
+    return SensorRoute(SensorConfig(name, kind, rate, sigma, lever), transport, talker, sentences, source_address,
+                       system_id)
+
+
+def _parse_hub(section: Section) -> HubConfig:
+    defaults = HubConfig()
+    values: dict[str, float] = {}
+    for key, value in vars(defaults).items():
+        deg_key = key.replace("_rad", "_deg")
+        if deg_key != key and section.has(deg_key):
+            values[key] = math.radians(section.number(deg_key, minimum=0.0, exclusive_minimum=True))
+        elif section.has(key):
+            values[key] = section.number(key, minimum=0.0, exclusive_minimum=True)
+        else:
+            section.raw(key, None)
+            if deg_key != key:
+                section.raw(deg_key, None)
+            values[key] = value
+    section.finish()
+    return HubConfig(**values)
+
+
+def parse_config(mapping: object, *, file: str | None = None, text: str = "") -> DaemonConfig:
+    """Validate a parsed YAML mapping into a :class:`DaemonConfig`.
+
+    Raises
+    ------
+    ConfigError
+        With the file name, the key path and what was expected.
+    """
+    try:
+        return _parse(mapping, text, file)
+    except ConfigError as error:
+        raise error.with_file(file) if file else error from None
+
+
+def _parse(mapping: object, text: str, file: str | None) -> DaemonConfig:
+    root = Section.of(mapping)
+    vessel_id = root.string("vessel_id")
+    if not VESSEL_ID_PATTERN.match(vessel_id):
+        raise ConfigError("vessel_id", "letters, digits, '_' or '-' (it is a Zenoh key segment)", vessel_id)
+    vessel = vessel_from_config(root.raw("vessel"), "vessel")
+    datum = None
+    if root.raw("datum", None) is not None:
+        section = root.section("datum")
+        datum = (section.number("lat_deg", minimum=-90.0, maximum=90.0),
+                 section.number("lon_deg", minimum=-180.0, maximum=180.0))
+        section.finish()
+    loop = root.section("loop")
+    rate = loop.number("rate_hz", 10.0, minimum=1.0, maximum=100.0)
+    initial_mode = loop.string("initial_mode", "standby", choices=MODES)
+    auto_engage = loop.optional_number("auto_engage_s", minimum=0.0)
+    loop.finish()
+
+    transports = parse_list(root, "transports", _parse_transport, required=True, min_items=1)
+    by_name: dict[str, TransportConfig] = {}
+    for index, transport in enumerate(transports):
+        if transport.name in by_name:
+            raise ConfigError(f"transports[{index}].name", "a unique transport name", transport.name)
+        by_name[transport.name] = transport
+    routes = tuple(_parse_route(Section.of(item, where), by_name)
+                   for where, item in root.items("sensors", required=True, min_items=1))
+    names = [r.sensor.name for r in routes]
+    for index, name in enumerate(names):
+        if names.index(name) != index:
+            raise ConfigError(f"sensors[{index}].name", "a unique sensor name", name)
+    if not any(r.sensor.kind is SensorKind.POSITION for r in routes):
+        raise ConfigError("sensors", "at least one sensor of kind position", names)
+    if not any(r.sensor.kind is SensorKind.HEADING for r in routes):
+        raise ConfigError("sensors", "at least one sensor of kind heading", names)
+
+    est = root.section("estimator")
+    kind = est.string("kind", "mmae", choices=("mmae", "kf", "rpem", "raw"))
+    if kind == "mmae":
+        omegas = tuple(float(v) for v in est.vector("omegas_rad_s", None, list(EstimatorSettings.omegas_rad_s)))
+    elif kind == "kf":
+        omegas = (est.number("omega_rad_s", 0.8, minimum=0.05, maximum=5.0),)
+    elif kind == "rpem":
+        omegas = (est.number("omega0_rad_s", 0.8, minimum=0.05, maximum=5.0),)
+    else:
+        omegas = ()
+    for i, omega in enumerate(omegas):
+        if not 0.05 <= omega <= 5.0:
+            raise ConfigError(f"estimator.omegas_rad_s[{i}]", "a frequency in [0.05, 5] rad/s", omega)
+    zeta = est.number("zeta", 0.1, minimum=0.0, exclusive_minimum=True, maximum=1.0)
+    options = {k: v for k, v in est.data.items() if k not in ("kind", "omegas_rad_s", "omega_rad_s",
+                                                                 "omega0_rad_s", "zeta")}
+    est._read.update(options)
+    estimator = EstimatorSettings(kind, omegas, zeta, options)
+    est.finish()
+
+    gui = root.section("guidance")
+    guidance = GuidanceSettings(
+        natural_period_s=_tuple3(gui, "natural_period_s", None),
+        damping=_tuple3(gui, "damping", (1.0, 1.0, 1.0)) or (1.0, 1.0, 1.0),
+        max_speed_mps=gui.optional_number("max_speed_mps", minimum=0.0, exclusive_minimum=True),
+        max_yaw_rate_radps=None if not gui.has("max_yaw_rate_degps") else
+        math.radians(gui.number("max_yaw_rate_degps", minimum=0.0, exclusive_minimum=True)),
+        max_acceleration_mps2=gui.optional_number("max_acceleration_mps2", minimum=0.0, exclusive_minimum=True),
+        max_yaw_acceleration_radps2=None if not gui.has("max_yaw_acceleration_degps2") else
+        math.radians(gui.number("max_yaw_acceleration_degps2", minimum=0.0, exclusive_minimum=True)),
+    )
+    gui.raw("max_yaw_rate_degps", None)
+    gui.raw("max_yaw_acceleration_degps2", None)
+    gui.finish()
+
+    ctl = root.section("control")
+    control_kind = ctl.string("kind", "mrac", choices=("mrac", "pid", "pd_bias", "autopilot"))
+    control_options = {k: v for k, v in ctl.data.items() if k != "kind"}
+    ctl._read.update(control_options)
+    control = ControlSettings(control_kind, control_options)
+    ctl.finish()
+
+    allocation_section = root.section("allocation")
+    allocation = dict(allocation_section.data)
+
+    hub = _parse_hub(root.section("hub"))
+
+    fb = root.section("fallback")
+    fallback = FallbackSettings(
+        dead_reckoning_limit_s=fb.number("dead_reckoning_limit_s", 60.0, minimum=0.0),
+        position_loss=fb.string("position_loss", "hold_heading", choices=FALLBACKS),
+        heading_loss_limit_s=fb.number("heading_loss_limit_s", 5.0, minimum=0.0),
+        heading_loss=fb.string("heading_loss", "standby", choices=("standby", "zero_surge_sway")),
+    )
+    fb.finish()
+
+    tm = root.section("thruster_monitor")
+    monitor = ThrusterMonitorSettings(
+        feedback_timeout_s=tm.number("feedback_timeout_s", 2.0, minimum=0.0, exclusive_minimum=True),
+        mismatch_fraction=tm.number("mismatch_fraction", 0.25, minimum=0.0, exclusive_minimum=True),
+        mismatch_persist_s=tm.number("mismatch_persist_s", 5.0, minimum=0.0),
+        shortfall_fraction=tm.number("shortfall_fraction", 0.1, minimum=0.0, exclusive_minimum=True),
+        shortfall_persist_s=tm.number("shortfall_persist_s", 10.0, minimum=0.0),
+    )
+    tm.finish()
+
+    zs = root.section("zenoh")
+    zenoh_endpoints: dict[str, tuple[str, ...]] = {}
+    for key in ("listen", "connect"):
+        endpoints = []
+        for where, value in zs.items(key):
+            if not isinstance(value, str) or not re.fullmatch(r"(tcp|udp|tls|quic|unixsock-stream)/.+", value):
+                raise ConfigError(where, "a zenoh endpoint like tcp/127.0.0.1:7447", value)
+            endpoints.append(value)
+        zenoh_endpoints[key] = tuple(endpoints)
+    zenoh = ZenohSettings(zs.string("mode", "peer", choices=("peer", "client")), zenoh_endpoints["listen"],
+                          zenoh_endpoints["connect"])
+    zs.finish()
+
+    rs = root.section("recorder")
+    recorder = RecorderSettings(
+        path=rs.string("path") if rs.raw("path", None) is not None else None,
+        max_file_mb=rs.number("max_file_mb", 256.0, minimum=0.01),
+        max_total_mb=rs.number("max_total_mb", 4096.0, minimum=0.01),
+        rotate_s=rs.number("rotate_s", 3600.0, minimum=1.0),
+        flush_s=rs.number("flush_s", 1.0, minimum=0.05, maximum=1.0),
+        queue_size=rs.integer("queue_size", 10000, minimum=10),
+    )
+    rs.finish()
+
+    ss = root.section("state")
+    state = StateSettings(
+        path=ss.string("path") if ss.raw("path", None) is not None else None,
+        period_s=ss.number("period_s", 1.0, minimum=0.05),
+        max_age_s=ss.number("max_age_s", 30.0, minimum=0.0),
+    )
+    ss.finish()
+    root.finish()
+    return DaemonConfig(vessel_id, vessel, datum, rate, initial_mode, auto_engage, tuple(transports), routes,
+                        estimator, guidance, control, allocation, hub, fallback, monitor, zenoh, recorder, state,
+                        source_text=text, source_file=file)
+
+
+def load_config(path: str | Path) -> DaemonConfig:
+    """Read and validate a YAML configuration file.
+
+    Raises
+    ------
+    ConfigError
+        For unreadable files, YAML syntax errors and invalid content (naming the file).
+    """
+    file = str(path)
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except OSError as error:
+        raise ConfigError("", "a readable file", str(error), file=file) from None
+    try:
+        mapping = yaml.safe_load(text)
+    except yaml.YAMLError as error:
+        raise ConfigError("", "valid YAML", str(error).replace("\n", " "), file=file) from None
+    return parse_config(mapping, file=file, text=text)
+
+
+def config_as_json(config: DaemonConfig) -> str:
+    """The running configuration as JSON (the ``dp/<vessel>/config`` queryable)."""
+    mapping = yaml.safe_load(config.source_text) if config.source_text else {}
+    return json.dumps({"schema": "dpcontrol.config/1", "vessel_id": config.vessel_id,
+                       "config_sha256": config.config_hash, "config": mapping}, default=str)

@@ -1,0 +1,590 @@
+"""Sensor hub: validity, quality tests, voting and fusion of position and heading references.
+
+What commercial DP systems run on every position reference (IMO MSC/Circ.645, MSC.1/Circ.1580),
+applied to every position and heading sensor:
+
+* **invalid** data never arrives here: the codecs turn GGA quality 0, RMC V, THS V, N2K
+  "not available" into rejects; only valid messages are :class:`Measurement` s;
+* **drop-out**: no sample for ``stale_periods`` × the nominal period → *stale*;
+* **freeze**: identical values for ``freeze_window_s`` while time advances → *frozen* (rejected);
+* **prediction** (jump): a sample further from the wave filter's predicted measurement than
+  ``max(jump_min, k·√(S + σ²))`` is rejected at once; a sensor rejected continuously for
+  ``reject_persist_s`` while the others agree is marked *rejected*;
+* **variance**: each reference's residual variance about the prediction is tracked; its weight in
+  the fusion is the inverse of that variance (or of its GST statistics when present), and an alarm
+  is raised when it exceeds ``variance_alarm_factor``² × the nominal variance;
+* **median** (≥ 3 references): a reference further than ``median_limit`` from the median for
+  ``median_persist_s`` is *isolated*; with two references a disagreement raises an alarm without
+  isolation.
+
+Fusion is the inverse-variance weighted mean of the healthy references (latest samples, moved to
+the present with the estimated LF velocity). When the set of references in use changes, the step
+between the old and new fused value is faded out over ``switch_blend_s`` so the estimator — and
+so the thrust — never sees a jump.
+
+The hub is pure: time is the ``t_s`` argument; no clock, no I/O.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from enum import Enum
+
+from dpcontrol.models.frames import ssa
+from dpcontrol.runtime.alarms import AlarmRegistry, Severity
+from interfaces.geodesy import LocalFrame, lever_arm_ned
+from interfaces.messages import (
+    Heading,
+    Measurement,
+    PositionErrorStats,
+    PositionFix,
+    RateOfTurn,
+)
+
+
+class SensorKind(str, Enum):
+    """What a sensor measures."""
+
+    POSITION = "position"
+    HEADING = "heading"
+
+
+class SensorState(str, Enum):
+    """Health of one reference, as published in the status."""
+
+    WAITING = "waiting"  # never delivered a valid sample
+    OK = "ok"
+    STALE = "stale"  # drop-out
+    FROZEN = "frozen"
+    REJECTED = "rejected"  # persistent prediction-test failures
+    ISOLATED = "isolated"  # median test
+    DISCONNECTED = "disconnected"  # transport reports link loss
+
+
+@dataclass(frozen=True)
+class SensorConfig:
+    """One position or heading reference.
+
+    Attributes
+    ----------
+    name : str
+        Sensor name (the ``source`` of its measurements).
+    kind : SensorKind
+    nominal_rate_hz : float
+        Expected update rate [Hz] (drop-out detection).
+    sigma : float
+        Nominal 1-σ noise [m] for position, [rad] for heading.
+    lever_arm_m : tuple of float
+        Antenna position in the body frame (x forward, y starboard) [m]; position sensors only.
+    """
+
+    name: str
+    kind: SensorKind
+    nominal_rate_hz: float
+    sigma: float
+    lever_arm_m: tuple[float, float] = (0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class HubConfig:
+    """Thresholds of the quality tests (defaults per issue 8)."""
+
+    stale_periods: float = 5.0
+    freeze_window_s: float = 5.0
+    freeze_tolerance_m: float = 1e-4
+    freeze_tolerance_rad: float = 1e-7
+    jump_sigma_factor: float = 5.0
+    jump_min_m: float = 4.0
+    heading_jump_min_rad: float = math.radians(5.0)
+    reject_persist_s: float = 10.0
+    variance_time_constant_s: float = 20.0
+    variance_alarm_factor: float = 3.0
+    median_limit_m: float = 3.0
+    median_heading_limit_rad: float = math.radians(2.0)
+    median_persist_s: float = 2.0
+    median_filter_s: float = 5.0
+    switch_blend_s: float = 20.0
+    error_rate_alarm: float = 0.2
+
+
+@dataclass
+class _SensorTrack:
+    config: SensorConfig
+    state: SensorState = SensorState.WAITING
+    last_t_s: float | None = None  # receive time of the last sample (any, accepted or not)
+    last_accepted_t_s: float | None = None
+    value: tuple[float, float] = (0.0, 0.0)  # NED position [m] or (heading_rad, 0)
+    accepted_value: tuple[float, float] = (0.0, 0.0)
+    fresh: bool = False  # a new accepted sample since the last update
+    frozen_since_t_s: float | None = None
+    raw_previous: tuple[float, float] | None = None
+    rejecting_since_t_s: float | None = None
+    median_fail_since_t_s: float | None = None
+    residual_variance: float | None = None  # measured noise variance (variance test) [m²] / [rad²]
+    previous_residual: tuple[float, float] | None = None
+    filtered: tuple[float, float] | None = None  # low-passed accepted value for the median test
+    gst_sigma: float | None = None
+    gst_t_s: float | None = None
+    disconnected: bool = False
+    samples: int = 0
+    rejected_samples: int = 0
+    detail: str = ""
+    weight: float = 0.0
+
+    @property
+    def nominal_period_s(self) -> float:
+        return 1.0 / self.config.nominal_rate_hz
+
+
+@dataclass
+class HubOutput:
+    """What the hub gives the estimator for one control step.
+
+    Attributes
+    ----------
+    y_n : list of float
+        Fused measurement [north_m, east_m, psi_rad] (NED; heading wrapped).
+    measured : tuple of bool
+        Which of (north, east, heading) carry a new sample this step.
+    position_available, heading_available : bool
+        At least one healthy, non-stale reference of that kind.
+    position_lost_s, heading_lost_s : float
+        How long that kind has been unavailable [s] (0 when available).
+    position_sigma_m : float
+        1-σ of the fused position [m] (inverse-variance combination).
+    yaw_rate_radps : float or None
+        Latest rate of turn from a heading sensor [rad/s].
+    position_reset, heading_reset : bool
+        Every reference of that kind has failed the prediction test for ``reject_persist_s``: the
+        references agree with each other, so the *estimate* is wrong (e.g. after long dead
+        reckoning). The hub accepted them again; the caller re-initialises the estimator there.
+    """
+
+    y_n: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    measured: tuple[bool, bool, bool] = (False, False, False)
+    position_available: bool = False
+    heading_available: bool = False
+    position_lost_s: float = 0.0
+    heading_lost_s: float = 0.0
+    position_sigma_m: float = math.inf
+    yaw_rate_radps: float | None = None
+    position_reset: bool = False
+    heading_reset: bool = False
+
+
+class SensorHub:
+    """Quality tests, voting and fusion of the configured references.
+
+    Parameters
+    ----------
+    sensors : sequence of SensorConfig
+    config : HubConfig
+    alarms : AlarmRegistry
+        Where detections are raised and cleared.
+    datum : LocalFrame or None
+        Local NED frame; ``None`` → the first valid fix becomes the datum.
+    """
+
+    def __init__(self, sensors: Sequence[SensorConfig], config: HubConfig, alarms: AlarmRegistry,
+                 datum: LocalFrame | None = None) -> None:
+        self.config = config
+        self.alarms = alarms
+        self.datum = datum
+        self._tracks: dict[str, _SensorTrack] = {s.name: _SensorTrack(s) for s in sensors}
+        self._position = [t for t in self._tracks.values() if t.config.kind is SensorKind.POSITION]
+        self._heading = [t for t in self._tracks.values() if t.config.kind is SensorKind.HEADING]
+        self._out = HubOutput()
+        self._position_set: frozenset[str] = frozenset()
+        self._heading_set: frozenset[str] = frozenset()
+        self._position_offset = [0.0, 0.0]
+        self._heading_offset = 0.0
+        self._last_position = [0.0, 0.0]
+        self._last_heading = 0.0
+        self._position_lost_since: float | None = None
+        self._heading_lost_since: float | None = None
+        self._last_update_t_s: float | None = None
+        self._yaw_rate: float | None = None
+        self.unknown_sources = 0
+
+    # ------------------------------------------------------------------ inputs
+    def set_disconnected(self, name: str, disconnected: bool) -> None:
+        """Mark a sensor's transport as disconnected (serial unplugged, heartbeat lost)."""
+        track = self._tracks.get(name)
+        if track is not None:
+            track.disconnected = disconnected
+
+    def update(self, t_s: float, measurements: Iterable[Measurement], predicted_y_n: Sequence[float] | None,
+               predicted_variance: Sequence[float] | None, velocity_n: Sequence[float] | None = None) -> HubOutput:
+        """Ingest the measurements received since the last step and fuse them.
+
+        Parameters
+        ----------
+        t_s : float
+            Current time [s].
+        measurements : iterable of Measurement
+            New valid measurements, in receive order.
+        predicted_y_n : sequence of 3 floats or None
+            The wave filter's predicted measurement [north_m, east_m, psi_rad] for this step (None
+            before the estimator is initialised: the prediction test is skipped).
+        predicted_variance : sequence of 3 floats or None
+            Innovation variances of that prediction [m², m², rad²].
+        velocity_n : sequence of 2 floats or None
+            Estimated LF velocity in NED [m/s], to move slower references' latest samples to ``t_s``.
+        """
+        dt = 0.0 if self._last_update_t_s is None else max(t_s - self._last_update_t_s, 0.0)
+        self._last_update_t_s = t_s
+        for track in self._tracks.values():
+            track.fresh = False
+        for measurement in measurements:
+            self._ingest(measurement, predicted_y_n, predicted_variance)
+        out = self._out
+        out.position_reset = self._all_rejecting(self._position, t_s)
+        out.heading_reset = self._all_rejecting(self._heading, t_s)
+        if out.position_reset:  # no bumpless fade towards a wrong estimate
+            self._position_offset = [0.0, 0.0]
+            self._position_set = frozenset()
+        if out.heading_reset:
+            self._heading_offset = 0.0
+            self._heading_set = frozenset()
+        self._refresh_states(t_s)
+        self._median_tests(t_s)
+        pos_new = self._fuse_position(t_s, dt, velocity_n)
+        head_new = self._fuse_heading(t_s, dt)
+        out.measured = (pos_new, pos_new, head_new)
+        out.yaw_rate_radps = self._yaw_rate
+        self._availability(t_s)
+        return out
+
+    def _ingest(self, measurement: Measurement, predicted: Sequence[float] | None,
+                variance: Sequence[float] | None) -> None:
+        track = self._tracks.get(measurement.source)
+        message = measurement.message
+        if track is None:
+            self.unknown_sources += 1
+            return
+        if isinstance(message, PositionFix) and track.config.kind is SensorKind.POSITION:
+            self._ingest_position(track, measurement.t_s, message, predicted, variance)
+        elif isinstance(message, Heading) and track.config.kind is SensorKind.HEADING:
+            self._ingest_heading(track, measurement.t_s, message.heading_rad, predicted, variance)
+        elif isinstance(message, PositionErrorStats) and track.config.kind is SensorKind.POSITION:
+            sigmas = [s for s in (message.sigma_north_m, message.sigma_east_m) if s is not None and s > 0.0]
+            if sigmas:
+                track.gst_sigma = math.sqrt(sum(s * s for s in sigmas) / len(sigmas))
+                track.gst_t_s = measurement.t_s
+        elif isinstance(message, RateOfTurn) and track.config.kind is SensorKind.HEADING:
+            self._yaw_rate = message.rate_radps
+
+    def _nominal_sigma(self, track: _SensorTrack) -> float:
+        """1-σ the sensor claims: recent GST statistics, else the configured noise."""
+        if track.gst_sigma is not None and track.gst_t_s is not None and track.last_t_s is not None \
+                and track.last_t_s - track.gst_t_s <= 3.0 * self.config.stale_periods * track.nominal_period_s:
+            return track.gst_sigma
+        return track.config.sigma
+
+    def _sigma(self, track: _SensorTrack) -> float:
+        """Current 1-σ of a reference: the larger of the claimed and the measured (variance test) noise."""
+        nominal = self._nominal_sigma(track)
+        if track.residual_variance is not None:
+            return math.sqrt(max(track.residual_variance, nominal * nominal))
+        return nominal
+
+    def _ingest_position(self, track: _SensorTrack, t_s: float, fix: PositionFix,
+                         predicted: Sequence[float] | None, variance: Sequence[float] | None) -> None:
+        if self.datum is None:
+            self.datum = LocalFrame(fix.lat_deg, fix.lon_deg, 0.0)
+        north, east, _ = self.datum.to_ned(fix.lat_deg, fix.lon_deg, 0.0)
+        arm_x, arm_y = track.config.lever_arm_m
+        if arm_x or arm_y:
+            heading = self._last_heading if self._heading_set else (predicted[2] if predicted else 0.0)
+            d_north, d_east = lever_arm_ned(arm_x, arm_y, heading)
+            north -= d_north
+            east -= d_east
+        self._common_tests(track, t_s, (north, east), predicted, variance, is_heading=False)
+
+    def _ingest_heading(self, track: _SensorTrack, t_s: float, heading_rad: float,
+                        predicted: Sequence[float] | None, variance: Sequence[float] | None) -> None:
+        self._common_tests(track, t_s, (ssa(heading_rad), 0.0), predicted, variance, is_heading=True)
+
+    def _common_tests(self, track: _SensorTrack, t_s: float, value: tuple[float, float],
+                      predicted: Sequence[float] | None, variance: Sequence[float] | None, *,
+                      is_heading: bool) -> None:
+        cfg = self.config
+        track.samples += 1
+        track.last_t_s = t_s
+        track.value = value
+        # Freeze: identical raw values while time advances.
+        tolerance = cfg.freeze_tolerance_rad if is_heading else cfg.freeze_tolerance_m
+        previous = track.raw_previous
+        track.raw_previous = value
+        if previous is not None and abs(_diff(value[0], previous[0], is_heading)) <= tolerance \
+                and abs(value[1] - previous[1]) <= tolerance:
+            if track.frozen_since_t_s is None:
+                track.frozen_since_t_s = t_s - track.nominal_period_s
+        else:
+            track.frozen_since_t_s = None
+        if track.frozen_since_t_s is not None and t_s - track.frozen_since_t_s >= cfg.freeze_window_s - 1e-9:
+            track.rejected_samples += 1
+            track.detail = f"identical values for {t_s - track.frozen_since_t_s:.1f} s"
+            return
+        # Prediction test against the wave filter (total motion, LF + WF).
+        if predicted is not None and variance is not None:
+            if is_heading:
+                residual_value = ssa(value[0] - predicted[2])
+                residual_value2 = 0.0
+                sigma = self._sigma(track)
+                limit = max(cfg.heading_jump_min_rad, cfg.jump_sigma_factor * math.sqrt(variance[2] + sigma * sigma))
+                distance = abs(residual_value)
+            else:
+                residual_value = value[0] - predicted[0]
+                residual_value2 = value[1] - predicted[1]
+                sigma = self._sigma(track)
+                limit = max(cfg.jump_min_m,
+                            cfg.jump_sigma_factor * math.sqrt(0.5 * (variance[0] + variance[1]) + sigma * sigma))
+                distance = math.hypot(residual_value, residual_value2)
+            if distance > limit:
+                track.rejected_samples += 1
+                if track.rejecting_since_t_s is None:
+                    track.rejecting_since_t_s = t_s
+                track.detail = f"prediction test: {distance:.3g} > {limit:.3g}"
+                return
+            track.rejecting_since_t_s = None
+            # Variance test on successive residuals about the prediction: differencing removes the
+            # slow part (bias, drift — the median test's job), leaving the sensor's noise.
+            residual = (residual_value, residual_value2)
+            previous_residual = track.previous_residual
+            track.previous_residual = residual
+            if previous_residual is not None and track.last_accepted_t_s is not None and \
+                    t_s - track.last_accepted_t_s <= 2.5 * track.nominal_period_s:
+                d0 = residual[0] - previous_residual[0]
+                d1 = residual[1] - previous_residual[1]
+                own = 0.5 * (d0 * d0 + d1 * d1) if is_heading else 0.25 * (d0 * d0 + d1 * d1)
+                alpha = min(1.0, track.nominal_period_s / cfg.variance_time_constant_s)
+                track.residual_variance = own if track.residual_variance is None else \
+                    (1.0 - alpha) * track.residual_variance + alpha * own
+        # Low-pass the accepted values for the median test, so noise does not flip it on and off.
+        if track.filtered is None or track.last_accepted_t_s is None:
+            track.filtered = value
+        else:
+            alpha = 1.0 - math.exp(-max(t_s - track.last_accepted_t_s, 0.0) / cfg.median_filter_s)
+            f0, f1 = track.filtered
+            track.filtered = (f0 + alpha * _diff(value[0], f0, is_heading), f1 + alpha * (value[1] - f1))
+        track.last_accepted_t_s = t_s
+        track.accepted_value = value
+        track.fresh = True
+        track.detail = ""
+
+    def _all_rejecting(self, tracks: list[_SensorTrack], t_s: float) -> bool:
+        """All live references of a kind rejected by the prediction test for long → trust them."""
+        live = [t for t in tracks if t.last_t_s is not None and not t.disconnected and
+                t_s - t.last_t_s <= self.config.stale_periods * t.nominal_period_s and
+                t.frozen_since_t_s is None]
+        if not live or any(t.rejecting_since_t_s is None or
+                           t_s - t.rejecting_since_t_s < self.config.reject_persist_s for t in live):
+            return False
+        for track in live:
+            track.rejecting_since_t_s = None
+            track.residual_variance = None
+            track.previous_residual = None
+            track.accepted_value = track.value
+            track.last_accepted_t_s = track.last_t_s
+            track.fresh = True
+        self.alarms.raise_(t_s, "estimator.reset", Severity.ALARM,
+                           "all references disagreed with the estimate; estimator re-initialised on them")
+        return True
+
+    # ------------------------------------------------------------------ states and voting
+    def _refresh_states(self, t_s: float) -> None:
+        cfg = self.config
+        for track in self._tracks.values():
+            name = track.config.name
+            if track.disconnected:
+                state = SensorState.DISCONNECTED
+            elif track.last_t_s is None:
+                state = SensorState.WAITING
+            elif t_s - track.last_t_s > cfg.stale_periods * track.nominal_period_s:
+                state = SensorState.STALE
+            elif track.frozen_since_t_s is not None and t_s - track.frozen_since_t_s >= cfg.freeze_window_s - 1e-9:
+                state = SensorState.FROZEN
+            elif track.rejecting_since_t_s is not None and t_s - track.rejecting_since_t_s >= cfg.reject_persist_s:
+                state = SensorState.REJECTED
+            elif track.state is SensorState.ISOLATED and track.median_fail_since_t_s is not None:
+                state = SensorState.ISOLATED
+            else:
+                state = SensorState.OK
+            track.state = state
+            for alarm_state in (SensorState.STALE, SensorState.FROZEN, SensorState.REJECTED,
+                                SensorState.DISCONNECTED):
+                self.alarms.set(t_s, f"sensor.{name}.{alarm_state.value}", state is alarm_state, Severity.WARNING,
+                                f"{name}: {alarm_state.value} {track.detail}".strip())
+            noisy = track.residual_variance is not None and state is SensorState.OK and \
+                track.residual_variance > (cfg.variance_alarm_factor * track.config.sigma) ** 2
+            self.alarms.set(t_s, f"sensor.{name}.noisy", noisy, Severity.WARNING,
+                            f"{name}: noise above {cfg.variance_alarm_factor:g}× nominal (variance test)")
+
+    def _healthy(self, tracks: list[_SensorTrack], t_s: float) -> list[_SensorTrack]:
+        return [t for t in tracks if t.state in (SensorState.OK, SensorState.ISOLATED) and
+                t.last_accepted_t_s is not None and
+                t_s - t.last_accepted_t_s <= self.config.stale_periods * t.nominal_period_s]
+
+    def _median_tests(self, t_s: float) -> None:
+        self._median_one(self._healthy(self._position, t_s), t_s, heading=False)
+        self._median_one(self._healthy(self._heading, t_s), t_s, heading=True)
+
+    def _median_one(self, tracks: list[_SensorTrack], t_s: float, *, heading: bool) -> None:
+        cfg = self.config
+        kind = "heading" if heading else "position"
+        limit = cfg.median_heading_limit_rad if heading else cfg.median_limit_m
+        if len(tracks) >= 3:
+            self.alarms.clear(t_s, f"{kind}.disagree")
+            values = [t.filtered or t.accepted_value for t in tracks]
+            if heading:
+                ref = values[0][0]
+                median = (ref + _median([ssa(v[0] - ref) for v in values]), 0.0)
+            else:
+                median = (_median([v[0] for v in values]), _median([v[1] for v in values]))
+            for track, value in zip(tracks, values, strict=True):
+                distance = _distance(value, median, heading)
+                if distance > max(limit, 3.0 * self._nominal_sigma(track)):
+                    if track.median_fail_since_t_s is None:
+                        track.median_fail_since_t_s = t_s
+                    if t_s - track.median_fail_since_t_s >= cfg.median_persist_s:
+                        track.state = SensorState.ISOLATED
+                        track.detail = f"median test: {distance:.3g} from the median"
+                else:
+                    track.median_fail_since_t_s = None
+                    if track.state is SensorState.ISOLATED:
+                        track.state = SensorState.OK
+                self.alarms.set(t_s, f"sensor.{track.config.name}.isolated", track.state is SensorState.ISOLATED,
+                                Severity.WARNING, f"{track.config.name}: isolated by the median test")
+        elif len(tracks) == 2:
+            a, b = tracks
+            distance = _distance(a.filtered or a.accepted_value, b.filtered or b.accepted_value, heading)
+            disagree = distance > max(limit, 3.0 * math.hypot(self._nominal_sigma(a), self._nominal_sigma(b)))
+            for track in tracks:
+                track.median_fail_since_t_s = None
+                if track.state is SensorState.ISOLATED:
+                    track.state = SensorState.OK
+            self.alarms.set(t_s, f"{kind}.disagree", disagree, Severity.ALARM,
+                            f"two {kind} references disagree by {distance:.3g}; cannot isolate")
+        else:
+            self.alarms.clear(t_s, f"{kind}.disagree")
+
+    # ------------------------------------------------------------------ fusion
+    def _weights(self, tracks: list[_SensorTrack]) -> list[float]:
+        weights = []
+        for track in tracks:
+            sigma = self._sigma(track)
+            weights.append(1.0 / max(sigma * sigma, 1e-12))
+        return weights
+
+    def _fuse_position(self, t_s: float, dt: float, velocity_n: Sequence[float] | None) -> bool:
+        usable = [t for t in self._healthy(self._position, t_s) if t.state is SensorState.OK]
+        for track in self._position:
+            track.weight = 0.0
+        if not usable:
+            self._position_set = frozenset()
+            return False
+        weights = self._weights(usable)
+        total = sum(weights)
+        vn, ve = (velocity_n[0], velocity_n[1]) if velocity_n is not None else (0.0, 0.0)
+        north = east = 0.0
+        for track, weight in zip(usable, weights, strict=True):
+            age = t_s - (track.last_accepted_t_s or t_s)
+            north += weight * (track.accepted_value[0] + vn * age)
+            east += weight * (track.accepted_value[1] + ve * age)
+            track.weight = weight / total
+        north /= total
+        east /= total
+        names = frozenset(t.config.name for t in usable)
+        if names != self._position_set and self._position_set:
+            # Bumpless switch: keep the output continuous and fade the step out.
+            self._position_offset[0] += self._last_position[0] - (north + self._position_offset[0])
+            self._position_offset[1] += self._last_position[1] - (east + self._position_offset[1])
+        self._position_set = names
+        decay = math.exp(-dt / self.config.switch_blend_s) if dt > 0.0 else 1.0
+        self._position_offset[0] *= decay
+        self._position_offset[1] *= decay
+        fused_north = north + self._position_offset[0]
+        fused_east = east + self._position_offset[1]
+        self._last_position[0] = fused_north
+        self._last_position[1] = fused_east
+        self._out.y_n[0] = fused_north
+        self._out.y_n[1] = fused_east
+        self._out.position_sigma_m = 1.0 / math.sqrt(total)
+        return any(t.fresh for t in usable)
+
+    def _fuse_heading(self, t_s: float, dt: float) -> bool:
+        usable = [t for t in self._healthy(self._heading, t_s) if t.state is SensorState.OK]
+        for track in self._heading:
+            track.weight = 0.0
+        if not usable:
+            self._heading_set = frozenset()
+            return False
+        weights = self._weights(usable)
+        total = sum(weights)
+        ref = usable[0].accepted_value[0]
+        mean_offset = sum(w * ssa(t.accepted_value[0] - ref) for t, w in zip(usable, weights, strict=True)) / total
+        for track, weight in zip(usable, weights, strict=True):
+            track.weight = weight / total
+        heading = ref + mean_offset
+        names = frozenset(t.config.name for t in usable)
+        if names != self._heading_set and self._heading_set:
+            self._heading_offset += ssa(self._last_heading - (heading + self._heading_offset))
+        self._heading_set = names
+        decay = math.exp(-dt / self.config.switch_blend_s) if dt > 0.0 else 1.0
+        self._heading_offset *= decay
+        fused = ssa(heading + self._heading_offset)
+        self._last_heading = fused
+        self._out.y_n[2] = fused
+        return any(t.fresh for t in usable)
+
+    def _availability(self, t_s: float) -> None:
+        out = self._out
+        out.position_available = bool(self._position_set)
+        out.heading_available = bool(self._heading_set)
+        if out.position_available:
+            self._position_lost_since = None
+        elif self._position_lost_since is None:
+            self._position_lost_since = t_s
+        if out.heading_available:
+            self._heading_lost_since = None
+        elif self._heading_lost_since is None:
+            self._heading_lost_since = t_s
+        out.position_lost_s = 0.0 if self._position_lost_since is None else t_s - self._position_lost_since
+        out.heading_lost_s = 0.0 if self._heading_lost_since is None else t_s - self._heading_lost_since
+
+    # ------------------------------------------------------------------ reporting
+    def sensor_status(self, t_s: float) -> list[dict[str, object]]:
+        """Per-sensor health for ``dp/<vessel>/status``."""
+        rows = []
+        for track in self._tracks.values():
+            age = None if track.last_t_s is None else round(t_s - track.last_t_s, 3)
+            rows.append({"name": track.config.name, "kind": track.config.kind.value, "state": track.state.value,
+                         "age_s": age, "weight": round(track.weight, 4), "sigma": self._sigma(track),
+                         "samples": track.samples, "rejected": track.rejected_samples, "detail": track.detail})
+        return rows
+
+    def state_of(self, name: str) -> SensorState:
+        return self._tracks[name].state
+
+    def weight_of(self, name: str) -> float:
+        return self._tracks[name].weight
+
+
+def _diff(a: float, b: float, heading: bool) -> float:
+    return ssa(a - b) if heading else a - b
+
+
+def _distance(a: tuple[float, float], b: tuple[float, float], heading: bool) -> float:
+    if heading:
+        return abs(ssa(a[0] - b[0]))
+    return math.hypot(a[0] - b[0], a[1] - b[1])
+
+
+def _median(values: list[float]) -> float:
+    ordered = sorted(values)
+    n = len(ordered)
+    mid = n // 2
+    return ordered[mid] if n % 2 else 0.5 * (ordered[mid - 1] + ordered[mid])

@@ -1,0 +1,209 @@
+"""Sensor hub quality tests on synthetic references (the closed-loop fault tests are in tests/closed_loop)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from dpcontrol.runtime.alarms import AlarmRegistry
+from dpcontrol.runtime.hub import HubConfig, SensorConfig, SensorHub, SensorKind, SensorState
+from interfaces.geodesy import LocalFrame
+from interfaces.messages import FixQuality, Heading, Measurement, PositionErrorStats, PositionFix
+
+DATUM = LocalFrame(63.43, 10.39)
+DT = 0.1
+
+
+def _fix(north: float, east: float) -> PositionFix:
+    lat, lon = DATUM.surface_to_geodetic(north, east)
+    return PositionFix(lat, lon, FixQuality.DGPS)
+
+
+def _hub(n_position: int = 1, n_heading: int = 1, **overrides: float) -> tuple[SensorHub, AlarmRegistry]:
+    sensors = [SensorConfig(f"gnss{i + 1}", SensorKind.POSITION, 10.0, 0.5) for i in range(n_position)]
+    sensors += [SensorConfig(f"gyro{i + 1}", SensorKind.HEADING, 10.0, math.radians(0.2)) for i in range(n_heading)]
+    alarms = AlarmRegistry()
+    return SensorHub(sensors, HubConfig(**overrides), alarms, DATUM), alarms
+
+
+class Scene:
+    """Drives a hub with references around a vessel at rest at the origin, heading 30°."""
+
+    def __init__(self, hub: SensorHub, seed: int = 1) -> None:
+        self.hub = hub
+        self.rng = np.random.default_rng(seed)
+        self.t = 0.0
+        self.position_error: dict[str, tuple[float, float]] = {}
+        self.position_noise: dict[str, float] = {}
+        self.heading_error: dict[str, float] = {}
+        self.frozen: dict[str, Measurement] = {}
+        self.silent: set[str] = set()
+        self.outputs = []
+
+    def step(self, n: int = 1) -> None:
+        for _ in range(n):
+            self.t += DT
+            measurements = []
+            for name, track in self.hub._tracks.items():
+                if name in self.silent:
+                    continue
+                if name in self.frozen:
+                    measurements.append(Measurement(self.t, name, self.frozen[name].message))
+                    continue
+                if track.config.kind is SensorKind.POSITION:
+                    sigma = self.position_noise.get(name, 0.5)
+                    dn, de = self.position_error.get(name, (0.0, 0.0))
+                    msg = _fix(dn + sigma * self.rng.standard_normal(), de + sigma * self.rng.standard_normal())
+                else:
+                    heading = math.radians(30.0) + self.heading_error.get(name, 0.0) + \
+                        math.radians(0.2) * self.rng.standard_normal()
+                    msg = Heading(heading % (2 * math.pi))
+                measurements.append(Measurement(self.t, name, msg))
+            out = self.hub.update(self.t, measurements, [0.0, 0.0, math.radians(30.0)], [0.3, 0.3, 1e-5])
+            self.outputs.append((out.y_n[0], out.y_n[1], out.y_n[2], out.measured))
+
+
+def test_fuses_a_single_reference_and_marks_new_samples() -> None:
+    hub, _ = _hub()
+    scene = Scene(hub)
+    scene.step(50)
+    ys = np.array([o[:3] for o in scene.outputs])
+    assert np.all([o[3] == (True, True, True) for o in scene.outputs])
+    assert abs(ys[:, 0].mean()) < 0.3 and abs(ys[:, 1].mean()) < 0.3
+    assert ys[:, 2] == pytest.approx(math.radians(30.0), abs=math.radians(1.0))
+    assert hub.state_of("gnss1") is SensorState.OK
+
+
+def test_frozen_position_is_rejected_within_the_window() -> None:
+    hub, alarms = _hub(n_position=2, freeze_window_s=5.0)
+    scene = Scene(hub)
+    scene.step(20)
+    scene.frozen["gnss1"] = Measurement(0.0, "gnss1", _fix(0.3, -0.2))
+    freeze_t = scene.t
+    detected = None
+    for _ in range(100):
+        scene.step()
+        if hub.state_of("gnss1") is SensorState.FROZEN:
+            detected = scene.t
+            break
+    # the first frozen sample looks like any other: detection ≤ window + one sample period
+    assert detected is not None and detected - freeze_t <= 5.0 + DT + 1e-6
+    assert alarms.is_active("sensor.gnss1.frozen")
+    scene.step(5)
+    assert hub.weight_of("gnss1") == 0.0 and hub.weight_of("gnss2") == pytest.approx(1.0)
+
+
+def test_jump_is_rejected_at_once_with_the_minimum_limit() -> None:
+    hub, _ = _hub()
+    scene = Scene(hub)
+    scene.step(20)
+    scene.position_error["gnss1"] = (10.0, 0.0)
+    scene.step(1)
+    assert scene.outputs[-1][3][0] is False  # no new position sample accepted
+    assert abs(scene.outputs[-1][0]) < 1.0  # the fused position did not jump
+    assert hub.state_of("gnss1") is SensorState.OK  # not yet persistent
+
+
+def test_all_references_rejected_for_long_resets_on_them() -> None:
+    hub, alarms = _hub(reject_persist_s=3.0)
+    scene = Scene(hub)
+    scene.step(10)
+    scene.position_error["gnss1"] = (20.0, 0.0)  # the estimate (prediction at origin) is what is wrong
+    reset_seen = False
+    for _ in range(60):
+        scene.step()
+        reset_seen = reset_seen or hub._out.position_reset
+    assert reset_seen and alarms.is_active("estimator.reset")
+
+
+def test_median_test_isolates_a_drifting_reference_of_three() -> None:
+    hub, alarms = _hub(n_position=3, median_limit_m=3.0, median_persist_s=2.0)
+    scene = Scene(hub)
+    scene.step(20)
+    drift_start = scene.t
+    isolated_at = None
+    for k in range(1, 1200):
+        scene.position_error["gnss3"] = (0.05 * k * DT, 0.0)  # 5 cm/s drift
+        scene.step()
+        if hub.state_of("gnss3") is SensorState.ISOLATED:
+            isolated_at = scene.t
+            break
+    assert isolated_at is not None
+    # isolated once the drift exceeds the limit (max(3 m, 3σ)) plus the persistence time (+ noise margin)
+    assert isolated_at - drift_start <= 3.0 / 0.05 + 2.0 + 10.0
+    assert alarms.is_active("sensor.gnss3.isolated")
+    assert hub.weight_of("gnss3") == 0.0
+
+
+def test_two_references_disagreeing_raise_an_alarm_without_isolation() -> None:
+    hub, alarms = _hub(n_position=2)
+    scene = Scene(hub)
+    scene.step(20)
+    scene.position_error["gnss2"] = (3.0, 3.0)  # within the jump limit, beyond the disagreement limit
+    scene.step(200)
+    assert alarms.is_active("position.disagree")
+    assert hub.state_of("gnss1") is SensorState.OK and hub.state_of("gnss2") is SensorState.OK
+
+
+def test_noisy_reference_loses_weight_and_raises_the_variance_alarm() -> None:
+    hub, alarms = _hub(n_position=2)
+    scene = Scene(hub)
+    scene.step(200)
+    before = hub.weight_of("gnss2")
+    scene.position_noise["gnss2"] = 2.5  # ×5
+    scene.step(600)
+    after = hub.weight_of("gnss2")
+    assert before == pytest.approx(0.5, abs=0.2)
+    assert after < 0.15
+    assert alarms.is_active("sensor.gnss2.noisy")
+
+
+def test_gst_statistics_set_the_weight() -> None:
+    hub, _ = _hub(n_position=2)
+    scene = Scene(hub)
+    scene.step(5)
+    hub.update(scene.t + 0.01, [Measurement(scene.t + 0.01, "gnss1", PositionErrorStats(0.05, 0.05))],
+               [0.0, 0.0, math.radians(30.0)], [0.3, 0.3, 1e-5])
+    scene.step(1)
+    assert hub.weight_of("gnss1") > hub.weight_of("gnss2")
+
+
+def test_dropout_marks_stale_and_position_is_lost() -> None:
+    hub, alarms = _hub(stale_periods=5.0)
+    scene = Scene(hub)
+    scene.step(10)
+    scene.silent.add("gnss1")
+    scene.step(4)
+    assert hub.state_of("gnss1") is SensorState.OK
+    scene.step(3)
+    assert hub.state_of("gnss1") is SensorState.STALE
+    assert alarms.is_active("sensor.gnss1.stale")
+    scene.step(10)
+    assert hub._out.position_available is False and hub._out.position_lost_s > 0.9
+
+
+def test_heading_offset_with_two_gyros_is_rejected_without_a_transient() -> None:
+    hub, alarms = _hub(n_heading=2)
+    scene = Scene(hub)
+    scene.step(50)
+    before = scene.outputs[-1][2]
+    scene.heading_error["gyro2"] = math.radians(10.0)
+    scene.step(200)
+    headings = np.array([o[2] for o in scene.outputs[-200:]])
+    assert np.max(np.abs(headings - before)) < math.radians(1.0)
+    assert hub.weight_of("gyro2") == 0.0
+
+
+def test_switching_references_fades_the_bias_difference_out() -> None:
+    hub, _ = _hub(n_position=2, switch_blend_s=20.0)
+    scene = Scene(hub)
+    scene.position_error["gnss2"] = (1.0, 0.0)  # a 1 m bias between the references
+    scene.position_noise = {"gnss1": 0.01, "gnss2": 0.01}
+    scene.step(300)
+    scene.silent.add("gnss2")
+    scene.step(100)
+    norths = np.array([o[0] for o in scene.outputs[-100:]])
+    assert np.max(np.abs(np.diff(norths))) < 0.05  # no step
+    assert abs(norths[-1]) < abs(norths[0])  # converging to the remaining reference
