@@ -1,0 +1,183 @@
+"""Thruster health from drive feedback (issue 8 §10).
+
+A thruster is taken out of the allocation — and commanded to zero — when its drive reports it is
+not ready, or when the thrust it delivers disagrees with what a healthy drive would deliver for the
+commands it was given (stuck, dead, wrong sign). The expected thrust follows the commands through
+the drive's first-order response and rate limit (``ThrusterSpec.time_constant_s``,
+``thrust_rate_limit_nps``), so ordinary lag is not a fault.
+
+A "not ready" thruster is re-admitted after it has reported ready for ``readmit_s``; a mismatch
+failure latches until an operator resets it (``reset(name)``), because a drive that delivered the
+wrong thrust once cannot be trusted again automatically.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from dpcontrol.models.thrusters import ThrusterSpec
+from dpcontrol.runtime.alarms import AlarmRegistry, Severity
+from dpcontrol.runtime.config import ThrusterMonitorSettings
+
+
+@dataclass(frozen=True)
+class ThrusterFeedback:
+    """What a drive reports: delivered thrust [N], azimuth/rudder angle [rad], readiness."""
+
+    name: str
+    thrust_n: float
+    azimuth_rad: float
+    ready: bool
+    t_s: float
+
+
+@dataclass
+class _Health:
+    spec: ThrusterSpec
+    expected_n: float = 0.0
+    last_feedback: ThrusterFeedback | None = None
+    ready_since_t_s: float | None = None
+    not_ready: bool = False
+    mismatch_since_t_s: float | None = None
+    failed_mismatch: bool = False
+    detail: str = ""
+
+
+class ThrusterMonitor:
+    """Tracks each thruster's availability from commands and feedback.
+
+    Parameters
+    ----------
+    thrusters : sequence of ThrusterSpec
+    settings : ThrusterMonitorSettings
+    alarms : AlarmRegistry
+    readmit_s : float
+        Ready time before a "not ready" thruster is used again [s].
+    """
+
+    def __init__(self, thrusters: Sequence[ThrusterSpec], settings: ThrusterMonitorSettings, alarms: AlarmRegistry,
+                 readmit_s: float = 5.0) -> None:
+        self.settings = settings
+        self.alarms = alarms
+        self.readmit_s = readmit_s
+        self._health = [_Health(spec) for spec in thrusters]
+        self._index = {spec.name: i for i, spec in enumerate(thrusters)}
+        self.available = np.ones(len(self._health), dtype=bool)
+        self.feedback_seen = False
+        self.unknown_feedback = 0
+
+    def feedback(self, items: Sequence[ThrusterFeedback]) -> None:
+        """Store the latest feedback of each drive."""
+        for item in items:
+            index = self._index.get(item.name)
+            if index is None:
+                self.unknown_feedback += 1
+                continue
+            self._health[index].last_feedback = item
+            self.feedback_seen = True
+
+    def update(self, t_s: float, dt_s: float, commanded_thrust_n: np.ndarray) -> np.ndarray:
+        """Advance the expected drive response by ``dt_s`` and decide availability.
+
+        Parameters
+        ----------
+        t_s : float
+            Now [s].
+        dt_s : float
+            Time since the previous call [s].
+        commanded_thrust_n : ndarray, shape (n,)
+            Thrust commanded in the previous cycle (what the drives are following) [N].
+
+        Returns
+        -------
+        ndarray of bool, shape (n,)
+            Availability mask for the allocator (a view, updated in place).
+        """
+        s = self.settings
+        for i, health in enumerate(self._health):
+            spec = health.spec
+            # Expected delivered thrust: first-order lag with the drive's rate limit.
+            target = float(commanded_thrust_n[i])
+            if dt_s > 0.0:
+                step = (target - health.expected_n) * (1.0 - math.exp(-dt_s / spec.time_constant_s))
+                limit = spec.thrust_rate_limit_nps * dt_s
+                health.expected_n += max(-limit, min(limit, step))
+            feedback = health.last_feedback
+            name = spec.name
+            if feedback is None or t_s - feedback.t_s > s.feedback_timeout_s:
+                # No (recent) feedback: availability keeps its last state; flag only if it was seen before.
+                stale = feedback is not None
+                self.alarms.set(t_s, f"thruster.{name}.feedback_lost", stale, Severity.WARNING,
+                                f"{name}: no feedback for more than {s.feedback_timeout_s:g} s")
+            else:
+                self.alarms.clear(t_s, f"thruster.{name}.feedback_lost")
+                if not feedback.ready:
+                    health.not_ready = True
+                    health.ready_since_t_s = None
+                    health.detail = "drive reports not ready"
+                elif health.not_ready:
+                    if health.ready_since_t_s is None:
+                        health.ready_since_t_s = t_s
+                    if t_s - health.ready_since_t_s >= self.readmit_s:
+                        health.not_ready = False
+                        health.expected_n = feedback.thrust_n
+                        health.detail = ""
+                if feedback.ready and not health.failed_mismatch and not health.not_ready:
+                    error = abs(feedback.thrust_n - health.expected_n)
+                    if error > s.mismatch_fraction * spec.max_thrust_n:
+                        if health.mismatch_since_t_s is None:
+                            health.mismatch_since_t_s = t_s
+                        if t_s - health.mismatch_since_t_s >= s.mismatch_persist_s:
+                            health.failed_mismatch = True
+                            health.detail = (f"delivered {feedback.thrust_n:.4g} N, expected "
+                                             f"{health.expected_n:.4g} N")
+                    else:
+                        health.mismatch_since_t_s = None
+            available = not (health.not_ready or health.failed_mismatch)
+            if not available:
+                health.expected_n = 0.0  # it is commanded to zero from now on
+            self.available[i] = available
+            self.alarms.set(t_s, f"thruster.{name}.unavailable", not available, Severity.ALARM,
+                            f"{name} removed from allocation: {health.detail}")
+        return self.available
+
+    def reset(self, name: str) -> bool:
+        """Operator reset of a latched mismatch failure; returns whether the thruster exists."""
+        index = self._index.get(name)
+        if index is None:
+            return False
+        health = self._health[index]
+        health.failed_mismatch = False
+        health.mismatch_since_t_s = None
+        health.expected_n = health.last_feedback.thrust_n if health.last_feedback else 0.0
+        return True
+
+    def delivered(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """Latest delivered thrust [N] and azimuth [rad] per thruster, or None without feedback."""
+        if not self.feedback_seen:
+            return None
+        thrust = np.array([h.last_feedback.thrust_n if h.last_feedback else 0.0 for h in self._health])
+        azimuth = np.array([h.last_feedback.azimuth_rad if h.last_feedback else h.spec.angle_rad
+                            for h in self._health])
+        return thrust, azimuth
+
+    def status(self) -> list[dict[str, object]]:
+        """Per-thruster availability for the status message."""
+        return [{"name": h.spec.name, "available": bool(self.available[i]), "detail": h.detail}
+                for i, h in enumerate(self._health)]
+
+    def state_dict(self) -> dict[str, object]:
+        return {"latched": [h.spec.name for h in self._health if h.failed_mismatch]}
+
+    def load_state_dict(self, state: dict[str, object]) -> None:
+        latched = state.get("latched", [])
+        if isinstance(latched, list):
+            for name in latched:
+                index = self._index.get(str(name))
+                if index is not None:
+                    self._health[index].failed_mismatch = True
+                    self._health[index].detail = "latched failure before restart"

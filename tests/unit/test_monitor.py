@@ -1,0 +1,194 @@
+"""``dpcontrol monitor``: the pure renderer on sample/missing/odd data, and the live loop over loopback."""
+
+from __future__ import annotations
+
+import argparse
+import io
+import math
+import threading
+from typing import Any
+
+import numpy as np
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from rich.console import Console
+
+from dpcontrol.monitor import (
+    MONITOR_TOPICS,
+    MonitorState,
+    TopicView,
+    add_arguments,
+    render,
+    run_monitor,
+)
+from interfaces.zenoh import schemas as sc
+from interfaces.zenoh.loopback import free_tcp_port, loopback_endpoint, open_listener
+from interfaces.zenoh.node import AliveState
+
+TIMEOUT_S = 20.0
+
+
+def _payloads(seq: int = 1) -> dict[str, bytes]:
+    t = 100.0 + seq
+    return {
+        "estimate": sc.estimate_payload(t_s=t, seq=seq, estimator="mmae", eta_n=[12.34, -5.5, math.radians(350.0)],
+                                        nu_b=[0.25, -0.05, math.radians(1.5)], bias=[2e3, -1e3, 4e4],
+                                        eta_wf_n=[0.3, 0.2, 0.01], covariance_diag=np.ones(15)),
+        "mmae": sc.mmae_payload(t_s=t, seq=seq, omegas_rad_s=[0.56, 0.73, 0.80], weights=[0.125, 0.625, 0.25],
+                                omega_hat_rad_s=0.71),
+        "control": sc.control_payload(t_s=t, seq=seq, controller="mrac", tau_b=[15e3, -25e3, 35e3],
+                                      setpoint_n=[10.0, -5.0, 0.0], reference_n=[11.0, -5.0, 0.0],
+                                      reference_nu_b=[0.1, 0.0, 0.0], tau_achieved_b=[15e3, -20e3, 35e3],
+                                      mrac_mass=[6.36e6, 7.0e6, 4.0e9], mrac_damping=[1.0e5, 2.0e5, 3.0e8]),
+        "status": sc.status_payload(
+            t_s=t, seq=seq, mode="auto_position",
+            sensors=[sc.SensorHealth("gnss1", "gnss", "ok", 0.12, 0.5),
+                     sc.SensorHealth("gyro2", "gyro", "frozen", 3.5, 0.0, "[bold]no change[/bold] for 3 s")],
+            alarms=[sc.Alarm("GYRO2_FROZEN", "alarm", "gyro2 frozen", 97.0, True),
+                    sc.Alarm("GNSS1_STALE", "warning", "cleared", 50.0, False)],
+            cycle=sc.CycleTiming(0.1, 142.0, 187.0, 3),
+            thrusters=[sc.ThrusterAvailability("bow", True), sc.ThrusterAvailability("stern", False, "trip")]),
+        "command": sc.command_payload(t_s=t, seq=seq, mode="auto_position", names=["bow", "stern"],
+                                      thrust_n=[12e3, -8e3], azimuth_rad=[math.pi / 2, 0.0]),
+        "feedback": sc.feedback_payload(t_s=t, seq=seq, names=["bow", "stern"], thrust_n=[11.5e3, math.nan],
+                                        azimuth_rad=[math.pi / 2, 0.0], ready=[True, False]),
+    }
+
+
+def _state(now_s: float = 10.0, rx_t_s: float = 9.8, **overrides: Any) -> MonitorState:
+    topics = {topic: TopicView(message=sc.parse_message(topic, payload), rx_t_s=rx_t_s, received=1)
+              for topic, payload in _payloads().items()}
+    fields: dict[str, Any] = {"topics": topics, "peers": 2, "alive": {
+        "controller": AliveState(present=True, seen=True, since_t_s=1.0, losses=0),
+        "plant": AliveState(present=False, seen=True, since_t_s=8.0, losses=1)}}
+    fields.update(overrides)
+    return MonitorState(vessel="supply", now_s=now_s, **fields)
+
+
+def _text(renderable: Any, width: int = 140) -> str:
+    console = Console(record=True, width=width, file=io.StringIO())
+    console.print(renderable)
+    return console.export_text()
+
+
+def test_render_shows_every_part() -> None:
+    text = _text(render(_state()))
+    assert "vessel supply" in text and "mode auto_position" in text
+    assert "controller ● alive" in text and "plant ✖ LOST" in text
+    assert "12.34" in text and "-5.50" in text          # north / east estimate
+    assert "350.0" in text                             # heading as a bearing in degrees
+    assert "2.34" in text                              # north error 12.34 - 10.00
+    assert "-10.0" in text                             # heading error wrapped: 350° vs 0° is -10°
+    assert "62.5%" in text and "12.5%" in text         # MMAE weights
+    assert "ω̂ = 0.710" in text and "moderate" in text  # seed 001 Table I
+    assert "6360" in text                              # MRAC surge mass in tonnes
+    assert "gyro2" in text and "frozen" in text
+    assert "[bold]no change[/bold]" in text           # payload text is never markup
+    assert "north [m]" in text and "X [kN]" in text    # unit brackets survive
+    assert "bow" in text and "stern" in text and "no (trip)" in text
+    assert "GYRO2_FROZEN" in text and "(1 active)" in text
+    assert "p99 187 µs" in text and "missed 3" in text
+
+
+def test_render_with_no_data_at_all() -> None:
+    text = _text(render(MonitorState(vessel="v1", now_s=0.0)))
+    assert text.count("no data") >= 8
+    assert "controller: ?" in text
+
+
+def test_render_with_some_topics_missing_and_some_stale() -> None:
+    state = _state(now_s=20.0, rx_t_s=19.9)
+    topics = dict(state.topics)
+    del topics["mmae"], topics["feedback"]
+    topics["status"] = TopicView(message=topics["status"].message, rx_t_s=12.0, received=1)
+    text = _text(render(MonitorState(vessel="supply", now_s=20.0, topics=topics)))
+    assert "MMAE (no data)" in text
+    assert "feedback (no data)" in text
+    assert "stale 8.0 s" in text
+    assert "12.34" in text  # the rest still shows
+
+
+def test_render_reports_rejections() -> None:
+    state = _state()
+    topics = dict(state.topics)
+    topics["feedback"] = TopicView(rejected=4, last_rejection="not_finite: thrusters[0].thrust_n")
+    text = _text(render(MonitorState(vessel="supply", now_s=10.0, topics=topics)))
+    assert "rejected feedback: 4" in text and "not_finite" in text
+
+
+_ODD = st.recursive(st.none() | st.booleans() | st.integers() | st.just(10**400) | st.floats() | st.text(max_size=8),
+                    lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=6), inner, max_size=3),
+                    max_leaves=10)
+
+
+@given(st.data())
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+def test_render_never_raises_on_odd_content(data: st.DataObject) -> None:
+    # render() is fed validated messages, but it must not trust them: mutate fields at random.
+    topics = {}
+    for topic, payload in _payloads().items():
+        message = dict(sc.parse_message(topic, payload))
+        for key in data.draw(st.lists(st.sampled_from(sorted(message)), max_size=3), label=topic):
+            message[key] = data.draw(_ODD)
+        topics[topic] = TopicView(message=message, rx_t_s=data.draw(st.none() | st.floats(0, 20)))
+    text = _text(render(MonitorState(vessel="x", now_s=10.0, topics=topics)))
+    assert "vessel x" in text
+
+
+def test_run_monitor_once_over_loopback() -> None:
+    daemon, endpoint = open_listener("montest")
+    try:
+        publishers = {topic: daemon.publisher(topic) for topic in MONITOR_TOPICS}
+        daemon.declare_alive("controller")
+        out = io.StringIO()
+        result: list[int] = []
+        thread = threading.Thread(target=lambda: result.append(run_monitor(
+            "montest", [endpoint], once=True, wait_s=TIMEOUT_S,
+            console=Console(file=out, width=140, force_terminal=False))))
+        thread.start()
+        try:
+            for topic, publisher in publishers.items():
+                assert publisher.wait_matched(TIMEOUT_S), topic
+            for topic, payload in _payloads().items():
+                assert publishers[topic].put(payload)
+        finally:
+            thread.join(TIMEOUT_S + 5.0)
+        assert not thread.is_alive()
+        assert result == [0]
+        text = out.getvalue()
+        assert "controller ● alive" in text and "plant ○ not seen" in text
+        assert "12.34" in text and "62.5%" in text and "GYRO2_FROZEN" in text
+        assert "no data" not in text
+    finally:
+        daemon.close()
+
+
+def test_run_monitor_once_with_nobody_there_says_so() -> None:
+    out = io.StringIO()
+    code = run_monitor("ghost", [loopback_endpoint(free_tcp_port())], once=True, wait_s=0.2,
+                       console=Console(file=out, width=100))
+    assert code == 1
+    assert "no data" in out.getvalue()
+
+
+def test_run_monitor_live_for_a_duration() -> None:
+    out = io.StringIO()
+    code = run_monitor("ghost", [loopback_endpoint(free_tcp_port())], duration_s=0.3, refresh_hz=20.0,
+                       console=Console(file=out, width=100, force_terminal=False))
+    assert code == 0
+    assert "dpcontrol monitor" in out.getvalue()
+
+
+def test_run_monitor_rejects_bad_arguments(capsys: Any) -> None:
+    assert run_monitor("a/b", ["tcp/127.0.0.1:1"], once=True) == 2
+    assert "invalid vessel id" in capsys.readouterr().err
+    assert run_monitor("ok", ["127.0.0.1:7447"], once=True) == 2
+    assert "protocol" in capsys.readouterr().err
+
+
+def test_cli_arguments() -> None:
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    args = parser.parse_args(["--vessel", "supply", "--connect", "tcp/10.0.0.1:7447", "--once", "--wait", "5"])
+    assert (args.vessel, args.connect, args.once, args.wait, args.duration) == (
+        "supply", ["tcp/10.0.0.1:7447"], True, 5.0, None)
