@@ -8,6 +8,7 @@ THS mode V, NMEA 2000 "not available") turn into :class:`Rejected`, never into a
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from enum import IntEnum
 
@@ -56,13 +57,42 @@ class PositionFix:
 
 @dataclass(frozen=True, slots=True)
 class PositionErrorStats:
-    """GNSS pseudorange error statistics (NMEA GST): 1-σ position errors [m]."""
+    """GNSS pseudorange error statistics (NMEA GST): 1-σ position errors [m].
+
+    ``sigma_major_m``, ``sigma_minor_m`` and ``orientation_rad`` describe the horizontal error
+    ellipse (semi-axes [m], orientation of the semi-major axis from true north, clockwise [rad]);
+    with them :meth:`covariance_ne_m2` gives the full horizontal covariance, north–east
+    correlation included.
+    """
 
     sigma_north_m: float | None
     sigma_east_m: float | None
     sigma_altitude_m: float | None = None
     rms_range_m: float | None = None
     utc_time_s: float | None = None
+    sigma_major_m: float | None = None
+    sigma_minor_m: float | None = None
+    orientation_rad: float | None = None
+
+    def covariance_ne_m2(self) -> tuple[float, float, float] | None:
+        """Horizontal position error covariance in the local NED frame.
+
+        From the error ellipse when it is complete, ``P = R(θ) diag(a², b²) R(θ)ᵀ`` with the
+        semi-major axis along ``(cos θ, sin θ)`` in (north, east); otherwise the diagonal
+        ``diag(σ_N², σ_E²)``.
+
+        Returns
+        -------
+        tuple of float or None
+            ``(P_nn, P_ee, P_ne)`` [m²], or ``None`` when neither form is available.
+        """
+        a, b, theta = self.sigma_major_m, self.sigma_minor_m, self.orientation_rad
+        if a is not None and b is not None and theta is not None:
+            c, s = math.cos(theta), math.sin(theta)
+            return (a * a * c * c + b * b * s * s, a * a * s * s + b * b * c * c, (a * a - b * b) * s * c)
+        if self.sigma_north_m is not None and self.sigma_east_m is not None:
+            return (self.sigma_north_m ** 2, self.sigma_east_m ** 2, 0.0)
+        return None
 
 
 @dataclass(frozen=True, slots=True)
@@ -164,3 +194,44 @@ class Measurement:
     t_s: float
     source: str
     message: SensorMessage
+
+
+@dataclass(frozen=True, slots=True)
+class RejectedInput:
+    """A :class:`Rejected` input stamped by the transport that received it (for counters and the recorder).
+
+    Attributes
+    ----------
+    t_s : float
+        Receive time on the consumer's clock [s].
+    source : str
+        Sensor or link name the input came from (best effort: a garbled frame may not say).
+    rejected : Rejected
+        Why it did not become a message.
+    """
+
+    t_s: float
+    source: str
+    rejected: Rejected
+
+
+@dataclass(frozen=True, slots=True)
+class LinkStatus:
+    """A change of a link's state reported by a transport (bus error, reconnect, heartbeat loss).
+
+    Attributes
+    ----------
+    t_s : float
+        Time of the change on the consumer's clock [s].
+    source : str
+        Link or peer name (``can:ws://...``, ``mavlink:1/1``).
+    connected : bool
+        ``True`` when the link (re)gained contact, ``False`` when it was lost.
+    detail : str
+        Human-readable cause.
+    """
+
+    t_s: float
+    source: str
+    connected: bool
+    detail: str = ""
