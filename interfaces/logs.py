@@ -27,97 +27,20 @@ optional ``stats`` dict, which is filled as the generator runs.
 
 from __future__ import annotations
 
-import dataclasses
-import enum
-import json
-import os
 from collections.abc import Callable, Iterator
-from pathlib import Path
 
-from interfaces.messages import (
-    Attitude,
-    CourseOverGround,
-    Heading,
-    LinkHeartbeat,
-    PositionErrorStats,
-    PositionFix,
-    RateOfTurn,
-    Rejected,
-    SensorMessage,
-    Wind,
-)
 from interfaces.nmea0183.codec import Frame, Nmea0183Decoder
+from interfaces.records import (
+    KINDS,
+    LogSource,
+    message_record,
+    read_log_bytes,
+    rejected_record,
+    to_json_line,
+)
 
-LogSource = str | os.PathLike | bytes
-"""A log file path, or the log's content as bytes."""
-
-RAW_EXCERPT_CHARS = 80
-"""Length of the ``raw`` excerpt in a rejected record."""
-
-KINDS: dict[type, str] = {
-    PositionFix: "position",
-    PositionErrorStats: "position_error",
-    Heading: "heading",
-    RateOfTurn: "rate_of_turn",
-    CourseOverGround: "course_over_ground",
-    Wind: "wind",
-    Attitude: "attitude",
-    LinkHeartbeat: "heartbeat",
-}
-"""The ``kind`` of each message type in a record."""
-
-
-def read_log_bytes(source: LogSource) -> bytes:
-    """The content of a log given as a path or as bytes."""
-    if isinstance(source, bytes | bytearray | memoryview):
-        return bytes(source)
-    return Path(source).read_bytes()
-
-
-def message_record(source: str, message: SensorMessage, **context: object) -> dict[str, object]:
-    """A JSON-ready record of a decoded message.
-
-    Parameters
-    ----------
-    source : str
-        Who sent it (NMEA 0183 talker ID, NMEA 2000 source address, MAVLink system/component).
-    message : SensorMessage
-        The typed message.
-    **context
-        Protocol-specific keys appended after the message fields (``sentence``, ``line``, ``pgn`` ...);
-        ``None`` values are left out.
-
-    Returns
-    -------
-    dict
-        ``source``, ``kind``, the message fields that have a value (``utc_time_s`` renamed
-        ``sample_time``, enums as lower-case names), then the context.
-    """
-    record: dict[str, object] = {"source": source, "kind": KINDS.get(type(message), type(message).__name__.lower())}
-    for field in dataclasses.fields(message):
-        value = getattr(message, field.name)
-        if value is None:
-            continue
-        if isinstance(value, enum.Enum):
-            value = value.name.lower()
-        record["sample_time" if field.name == "utc_time_s" else field.name] = value
-    record.update({key: value for key, value in context.items() if value is not None})
-    return record
-
-
-def rejected_record(source: str, rejected: Rejected, **context: object) -> dict[str, object]:
-    """A JSON-ready record of a rejected input: ``rejected`` (reason), ``detail``, ``source``, a printable
-    ``raw`` excerpt, then the context."""
-    record: dict[str, object] = {"rejected": rejected.reason, "detail": rejected.detail, "source": source}
-    if rejected.raw:
-        record["raw"] = rejected.raw[:RAW_EXCERPT_CHARS].decode("ascii", "backslashreplace")
-    record.update({key: value for key, value in context.items() if value is not None})
-    return record
-
-
-def to_json_line(record: dict[str, object]) -> str:
-    """One record as a compact JSON line (no NaN: missing values are ``null``)."""
-    return json.dumps(record, separators=(",", ":"), allow_nan=False)
+__all__ = ["KINDS", "LOG_DECODERS", "LogSource", "decode_log", "decode_nmea0183_log", "message_record",
+           "read_log_bytes", "rejected_record", "to_json_line"]
 
 
 # ----------------------------------------------------------------------------------------------
@@ -182,8 +105,13 @@ def _split_address(address: str) -> tuple[str, str]:
 # ----------------------------------------------------------------------------------------------
 # registry
 
+from interfaces.mavlink.logs import decode_tlog  # noqa: E402  (they import records, not this module)
+from interfaces.nmea2000.logs import decode_candump_log  # noqa: E402
+
 LOG_DECODERS: dict[str, Callable[..., Iterator[dict[str, object]]]] = {
     "nmea0183": decode_nmea0183_log,
+    "nmea2000": decode_candump_log,
+    "mavlink": decode_tlog,
 }
 """Protocol name (as typed after ``dpcontrol decode``) → log decoder."""
 

@@ -23,7 +23,7 @@ from typing import Any, BinaryIO
 
 from interfaces.mavlink.codec import MavlinkDecoder, mavlink_source_name
 from interfaces.messages import Rejected
-from interfaces.nmea2000.logs import message_record, rejected_record
+from interfaces.records import message_record, rejected_record
 
 _TIMESTAMP = struct.Struct(">Q")
 _V1, _V2 = 0xFE, 0xFD
@@ -134,7 +134,7 @@ def decode_tlog(source: str | os.PathLike[str] | bytes, stats: dict[str, int] | 
             if len(record) == 2:
                 offset, rejected = record
                 counts["skipped"] += 1
-                yield rejected_record("mav:?", rejected, offset=offset)
+                yield rejected_record("mav:?", rejected, binary=True, offset=offset)
                 continue
             offset, t_us, packet = record
             counts["records"] += 1
@@ -142,7 +142,8 @@ def decode_tlog(source: str | os.PathLike[str] | bytes, stats: dict[str, int] | 
             for result in decoder.decode_datagram(packet):
                 name = mavlink_source_name(result.system_id, result.component_id)
                 if isinstance(result.item, Rejected):
-                    yield rejected_record(name, result.item, msg=result.msg_name or None, t_s=t_s, offset=offset)
+                    yield rejected_record(name, result.item, binary=True, msg=result.msg_name or None,
+                                          t_s=t_s, offset=offset)
                 else:
                     yield message_record(name, result.item, msg=result.msg_name, t_s=t_s, offset=offset)
             counts.update(decoder.counters)

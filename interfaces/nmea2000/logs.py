@@ -18,71 +18,24 @@ uses them too).
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 from collections.abc import Iterator
-from enum import Enum
 from typing import Any
 
 from interfaces.messages import (
-    Attitude,
-    CourseOverGround,
-    Heading,
-    LinkHeartbeat,
-    PositionErrorStats,
-    PositionFix,
-    RateOfTurn,
     Rejected,
-    SensorMessage,
-    Wind,
 )
 from interfaces.nmea2000.candump import CandumpFrame, read_candump
 from interfaces.nmea2000.codec import N2kDecoded, N2kDecoder, n2k_source_name
-
-KINDS: dict[type, str] = {
-    PositionFix: "position",
-    PositionErrorStats: "position_error",
-    Heading: "heading",
-    RateOfTurn: "rate_of_turn",
-    CourseOverGround: "course_over_ground",
-    Attitude: "attitude",
-    Wind: "wind",
-    LinkHeartbeat: "heartbeat",
-}
-RAW_HEX_BYTES = 32  # raw excerpt kept in a reject record
-
-
-def message_record(source: str, message: SensorMessage, **extra: Any) -> dict[str, Any]:
-    """JSON-ready dict of one decoded message: ``source``, ``kind``, its fields (``None`` left out,
-    ``utc_time_s`` named ``sample_time``, enums as lower-case names), then ``extra``."""
-    record: dict[str, Any] = {"source": source, "kind": KINDS.get(type(message), type(message).__name__.lower())}
-    for field in dataclasses.fields(message):
-        value = getattr(message, field.name)
-        if value is None:
-            continue
-        if isinstance(value, Enum):
-            value = value.name.lower()
-        record["sample_time" if field.name == "utc_time_s" else field.name] = value
-    record.update({k: v for k, v in extra.items() if v is not None})
-    return record
-
-
-def rejected_record(source: str, rejected: Rejected, **extra: Any) -> dict[str, Any]:
-    """JSON-ready dict of one rejected input: ``rejected`` (the reason), ``detail``, ``source``, a hex
-    excerpt of the raw bytes, then ``extra``."""
-    record: dict[str, Any] = {"rejected": rejected.reason, "detail": rejected.detail, "source": source}
-    if rejected.raw:
-        record["raw"] = rejected.raw[:RAW_HEX_BYTES].hex()
-    record.update({k: v for k, v in extra.items() if v is not None})
-    return record
+from interfaces.records import message_record, rejected_record
 
 
 def _record(result: N2kDecoded, t_s: float | None, line: int | None) -> dict[str, Any]:
     source = n2k_source_name(result.source_address)
     pgn = result.pgn if result.pgn >= 0 else None
     if isinstance(result.item, Rejected):
-        return rejected_record(source, result.item, pgn=pgn, t_s=t_s, line=line)
+        return rejected_record(source, result.item, binary=True, pgn=pgn, t_s=t_s, line=line)
     return message_record(source, result.item, pgn=pgn, t_s=t_s, line=line)
 
 
