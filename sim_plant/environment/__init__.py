@@ -1,0 +1,44 @@
+"""Plant environment: waves (spectra, RAOs, WF motion, drift), current and wind (pure numpy).
+
+Modules: :mod:`.spectra` (JONSWAP / Pierson–Moskowitz, NORSOK gusts, sums of sinusoids),
+:mod:`.rao` (parametric motion RAOs and drift coefficients from the hull dimensions),
+:mod:`.waves` (sea states, cross-fades, WF motion and drift force), :mod:`.current`,
+:mod:`.wind` (Blendermann coefficients, gusts).
+"""
+
+from sim_plant.environment.current import CurrentModel
+from sim_plant.environment.rao import HullDimensions, motion_raos, reflection_coefficient
+from sim_plant.environment.spectra import SPECTRA, SpectralProcess, realise_waves, wave_spectrum
+from sim_plant.environment.waves import (
+    CALM,
+    NO_PEAKS,
+    SeaState,
+    SpectrumPeaks,
+    WaveEnvironment,
+    WaveField,
+    WaveSample,
+    motion_peaks,
+)
+from sim_plant.environment.wind import BLENDERMANN_TYPES, WindCoefficients, WindModel
+
+__all__ = [
+    "BLENDERMANN_TYPES",
+    "CALM",
+    "NO_PEAKS",
+    "SPECTRA",
+    "CurrentModel",
+    "HullDimensions",
+    "SeaState",
+    "SpectralProcess",
+    "SpectrumPeaks",
+    "WaveEnvironment",
+    "WaveField",
+    "WaveSample",
+    "WindCoefficients",
+    "WindModel",
+    "motion_peaks",
+    "motion_raos",
+    "realise_waves",
+    "reflection_coefficient",
+    "wave_spectrum",
+]

@@ -1,0 +1,475 @@
+"""Irregular long-crested waves: first-order WF motion through RAOs, second-order drift forces,
+piecewise-constant sea states with cross-fades.
+
+One :class:`WaveField` is one sea state realised as ``n`` regular waves (see
+:mod:`sim_plant.environment.spectra`) acting on one hull. Phases are taken at the vessel's LF
+position, φ_i(t) = ω_i t − k_i d(t) + ε_i with d the position along the propagation direction, so a
+moving vessel (the mariner at 7.7 m/s) sees the encounter frequency ω_e = ω − k·U cos β without any
+special case. The WF motion lives in body axes (seed 001 eqs. (8)–(11), (34)):
+
+    x_w = Σ a_i X(ω_i, β) sin φ_i,   y_w = Σ a_i Y(ω_i, β) sin φ_i,   ψ_w = −Σ a_i Ψ(ω_i, β) cos φ_i
+
+with the RAOs of :mod:`sim_plant.environment.rao` and β the propagation direction relative to the
+LF heading; the plant adds R(ψ)·(x_w, y_w) to the LF position and ψ_w to the heading (seed 001
+eq. (15)).
+
+The slowly varying drift force uses Newman's approximation in envelope form: with
+b_i = √(½ρg)·R(ω_i)·a_i, the force per unit length is |Σ b_i e^{iφ_i}|², whose mean is
+Σ ½ρg R_i² a_i² ∝ Hs² and whose fluctuation contains only difference frequencies ω_i − ω_j.
+
+A change of sea state regenerates the components; during ``fade_s`` after the change the output is
+cos(πs/2)·old + sin(πs/2)·new with s a smoothstep of time, which keeps the WF motion and its rate
+continuous and, for independent realisations, the variance between the two states.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from dpcontrol.models.frames import ssa
+from sim_plant.environment.rao import HullDimensions, drift_direction_factors, motion_raos, reflection_coefficient
+from sim_plant.environment.spectra import GRAVITY_MPS2, SPECTRA, WaveComponents, realise_waves, wave_spectrum
+
+_BETA_STEPS = 360
+_BETA_STEP_RAD = 2.0 * math.pi / _BETA_STEPS
+_BETA_REFRESH_RAD = 1e-3  # re-interpolate the RAO vectors when β moved more than this (0.06°)
+
+
+@dataclass(frozen=True)
+class SeaState:
+    """One sea state, in force from ``t_s`` on (scenario ``sea_states`` entry).
+
+    Attributes
+    ----------
+    t_s : float
+        Start time [s].
+    hs_m : float
+        Significant wave height [m] (0 = calm).
+    omega_peak_rad_s : float
+        Spectrum peak frequency ωp [rad/s] (seed 001 Table I: calm > 0.79, moderate 0.67–0.79,
+        high 0.45–0.67).
+    direction_rad : float
+        Direction the waves come FROM, NED, clockwise from north [rad] (like wind).
+    spectrum : {"jonswap", "pierson_moskowitz"}
+    gamma : float
+        JONSWAP peak enhancement (3.3 typical; 1 = Pierson–Moskowitz).
+    components : int
+        Number of regular wave components (≥ 100 in scenarios).
+    fade_s : float
+        Cross-fade time from the previous sea state [s].
+    """
+
+    t_s: float
+    hs_m: float
+    omega_peak_rad_s: float
+    direction_rad: float = 0.0
+    spectrum: str = "jonswap"
+    gamma: float = 3.3
+    components: int = 200
+    fade_s: float = 30.0
+
+    def __post_init__(self) -> None:
+        if self.spectrum not in SPECTRA:
+            raise ValueError(f"unknown spectrum {self.spectrum!r}")
+        if self.hs_m < 0.0 or self.omega_peak_rad_s <= 0.0 or self.components < 1 or self.fade_s < 0.0:
+            raise ValueError(f"invalid sea state {self}")
+
+    @property
+    def calm(self) -> bool:
+        return self.hs_m == 0.0
+
+
+@dataclass(frozen=True, slots=True)
+class WaveSample:
+    """Wave effects at one instant.
+
+    Attributes
+    ----------
+    surge_m, sway_m, yaw_rad : float
+        First-order WF motion in body axes [m, m, rad].
+    yaw_rate_radps : float
+        Time derivative of ``yaw_rad`` at the vessel (encounter frequency) [rad/s].
+    drift_b : tuple of float
+        Second-order drift force (X, Y, N) in body axes [N, N, N·m].
+    """
+
+    surge_m: float
+    sway_m: float
+    yaw_rad: float
+    yaw_rate_radps: float
+    drift_b: tuple[float, float, float]
+
+
+CALM = WaveSample(0.0, 0.0, 0.0, 0.0, (0.0, 0.0, 0.0))
+
+
+class WaveField:
+    """One realised sea state acting on one hull.
+
+    Parameters
+    ----------
+    components : WaveComponents
+    direction_from_rad : float
+        Direction the waves come from (NED) [rad].
+    hull : HullDimensions
+    water_density_kgpm3 : float
+    drift_scale : float
+        Multiplier on the thin-wall drift coefficient (see :mod:`sim_plant.environment.rao`).
+    """
+
+    def __init__(self, components: WaveComponents, direction_from_rad: float, hull: HullDimensions,
+                 water_density_kgpm3: float = 1025.0, drift_scale: float = 1.0) -> None:
+        self.components = components
+        self.direction_from_rad = direction_from_rad
+        chi = direction_from_rad + math.pi  # propagation direction
+        self.propagation_rad = ssa(chi)
+        self._cos_chi = math.cos(chi)
+        self._sin_chi = math.sin(chi)
+        self._omega = components.omega_rad_s
+        self._k = components.wavenumber_radpm
+        self._eps = components.phase_rad
+        self._a = components.amplitude_m
+        self._rho = water_density_kgpm3
+        self._drift_scale = drift_scale
+        n = self._omega.size
+        self._phi = np.empty(n)
+        self._tmp = np.empty(n)
+        self._sin = np.empty(n)
+        self._cos = np.empty(n)
+        self._ax = np.empty(n)
+        self._ay = np.empty(n)
+        self._apsi = np.empty(n)
+        self._apsi_w = np.empty(n)
+        self._apsi_k = np.empty(n)
+        self._beta_cached = math.inf
+        self._drift_factors = (0.0, 0.0, 0.0)
+        self.set_hull(hull)
+
+    # -- hull-dependent tables ------------------------------------------------------------------
+    def set_hull(self, hull: HullDimensions) -> None:
+        """(Re)build the RAO tables over β (1° grid) and the drift coefficients for ``hull``."""
+        self.hull = hull
+        beta = -math.pi + _BETA_STEP_RAD * np.arange(_BETA_STEPS + 1)
+        rx, ry, rpsi = motion_raos(self._omega[None, :], beta[:, None], hull)
+        self._table_x = rx * self._a
+        self._table_y = ry * self._a
+        self._table_psi = rpsi * self._a
+        r = reflection_coefficient(self._omega, hull.draft_m)
+        self._b = math.sqrt(0.5 * self._rho * GRAVITY_MPS2 * self._drift_scale) * r * self._a
+        self._beta_cached = math.inf
+
+    def _refresh(self, beta: float) -> None:
+        if abs(beta - self._beta_cached) <= _BETA_REFRESH_RAD:
+            return
+        pos = (beta + math.pi) / _BETA_STEP_RAD
+        j = min(int(pos), _BETA_STEPS - 1)
+        w = pos - j
+        for table, target in ((self._table_x, self._ax), (self._table_y, self._ay), (self._table_psi, self._apsi)):
+            np.multiply(table[j], 1.0 - w, out=target)
+            np.add(target, w * table[j + 1], out=target)
+        np.multiply(self._apsi, self._omega, out=self._apsi_w)
+        np.multiply(self._apsi, self._k, out=self._apsi_k)
+        self._beta_cached = beta
+        self._drift_factors = drift_direction_factors(beta, self.hull)
+
+    def relative_direction(self, heading_rad: float) -> float:
+        """β = propagation direction relative to the bow, wrapped (−π, π] [rad]."""
+        return ssa(self.propagation_rad - heading_rad)
+
+    # -- evaluation -------------------------------------------------------------------------------
+    def evaluate(self, t_s: float, north_m: float, east_m: float, heading_rad: float, *,
+                 north_rate_mps: float = 0.0, east_rate_mps: float = 0.0, weight: float = 1.0
+                 ) -> tuple[float, float, float, float, float, float]:
+        """WF motion, its yaw rate and the drift envelope at one instant (no array allocation).
+
+        Parameters
+        ----------
+        t_s : float
+        north_m, east_m, heading_rad : float
+            LF pose of the vessel (phase reference and relative direction).
+        north_rate_mps, east_rate_mps : float
+            LF velocity in NED (Doppler term of the WF yaw rate).
+        weight : float
+            Cross-fade weight applied to every output.
+
+        Returns
+        -------
+        tuple
+            (x_w [m], y_w [m], ψ_w [rad], ψ̇_w [rad/s], Re A, Im A) with A = Σ b_i e^{iφ_i} [√(N/m)]
+            (weighted).
+        """
+        beta = self.relative_direction(heading_rad)
+        self._refresh(beta)
+        d = north_m * self._cos_chi + east_m * self._sin_chi
+        d_rate = north_rate_mps * self._cos_chi + east_rate_mps * self._sin_chi
+        phi = self._phi
+        np.multiply(self._omega, t_s, out=phi)
+        np.multiply(self._k, d, out=self._tmp)
+        phi -= self._tmp
+        phi += self._eps
+        np.sin(phi, out=self._sin)
+        np.cos(phi, out=self._cos)
+        s = self._sin
+        c = self._cos
+        x = float(np.dot(self._ax, s))
+        y = float(np.dot(self._ay, s))
+        psi = -float(np.dot(self._apsi, c))
+        psi_rate = float(np.dot(self._apsi_w, s)) - d_rate * float(np.dot(self._apsi_k, s))
+        return (weight * x, weight * y, weight * psi, weight * psi_rate,
+                weight * float(np.dot(self._b, c)), weight * float(np.dot(self._b, s)))
+
+    def drift_factors(self) -> tuple[float, float, float]:
+        """Direction factors (l_x, l_y, l_n) for the β of the last :meth:`evaluate`."""
+        return self._drift_factors
+
+    def motion_series(self, t_s: np.ndarray, heading_rad: float, north_m: float = 0.0, east_m: float = 0.0
+                      ) -> np.ndarray:
+        """WF body motion for many times at a fixed pose, with the exact RAOs (tests, plots).
+
+        Returns
+        -------
+        ndarray, shape (len(t_s), 3)
+            Columns x_w [m], y_w [m], ψ_w [rad].
+        """
+        beta = self.relative_direction(heading_rad)
+        rx, ry, rpsi = motion_raos(self._omega, beta, self.hull)
+        d = north_m * self._cos_chi + east_m * self._sin_chi
+        phi = np.multiply.outer(np.asarray(t_s, dtype=float), self._omega) - self._k * d + self._eps
+        s = np.sin(phi)
+        return np.column_stack((s @ (self._a * rx), s @ (self._a * ry), -(np.cos(phi) @ (self._a * rpsi))))
+
+    def mean_drift_b(self, heading_rad: float) -> tuple[float, float, float]:
+        """Mean drift force Σ b_i² · (l_x, l_y, l_n) in body axes [N, N, N·m] (∝ Hs²)."""
+        mean = float(np.dot(self._b, self._b))
+        lx, ly, ln = drift_direction_factors(self.relative_direction(heading_rad), self.hull)
+        return mean * lx, mean * ly, mean * ln
+
+
+def _peak_grid(state: SeaState) -> tuple[np.ndarray, np.ndarray]:
+    w = np.linspace(0.3 * state.omega_peak_rad_s, 5.0 * state.omega_peak_rad_s, 600)
+    return w, wave_spectrum(w, state.hs_m if state.hs_m > 0.0 else 1.0, state.omega_peak_rad_s, state.gamma,
+                            state.spectrum)
+
+
+def motion_peaks(state: SeaState, hull: HullDimensions, beta_rad: float, speed_along_mps: float = 0.0,
+                 grid: tuple[np.ndarray, np.ndarray] | None = None
+                 ) -> tuple[float | None, float | None, float | None]:
+    """Peak frequencies of the continuous motion spectra |RAO_i(ω, β)|² S(ω) (surge, sway, yaw).
+
+    With the vessel moving at ``speed_along_mps`` along the wave propagation direction, the spectra
+    are mapped to the encounter frequency ω_e = ω − ω²U/g (density divided by |dω_e/dω|, clipped
+    near the following-sea singularity), since that is what a filter on board sees. The maximum is
+    found on a 600-point grid over [0.3, 5]·ωp and refined by a parabola through the three points
+    around it (error ≪ 0.1 % of ωp).
+
+    Returns
+    -------
+    tuple of (float or None)
+        ω of the maxima [rad/s] (encounter frequency when moving); None for a DOF the waves do not
+        move (e.g. yaw in exact head seas).
+    """
+    w, spectrum = grid if grid is not None else _peak_grid(state)
+    rx, ry, rpsi = motion_raos(w, beta_rad, hull)
+    if speed_along_mps != 0.0:
+        spectrum = spectrum / np.maximum(np.abs(1.0 - 2.0 * w * speed_along_mps / GRAVITY_MPS2), 0.05)
+    peaks: list[float | None] = []
+    for rao in (rx, ry, rpsi):
+        # a DOF whose RAO is zero up to rounding (sway in exact head seas: sin π ≈ 1e-16) has no peak
+        if np.max(np.abs(rao)) <= 1e-9:
+            peaks.append(None)
+            continue
+        density = rao * rao * spectrum
+        j = min(max(int(np.argmax(density)), 1), w.size - 2)
+        y0, y1, y2 = density[j - 1], density[j], density[j + 1]
+        curvature = y0 - 2.0 * y1 + y2
+        shift = 0.5 * (y0 - y2) / curvature if curvature < 0.0 else 0.0
+        omega = float(w[j] + shift * (w[1] - w[0]))
+        peaks.append(abs(omega - omega * omega * speed_along_mps / GRAVITY_MPS2))
+    return peaks[0], peaks[1], peaks[2]
+
+
+def motion_variances(state: SeaState, hull: HullDimensions, beta_rad: float,
+                     grid: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[float, float, float]:
+    """∫|RAO_i|² S dω for surge [m²], sway [m²], yaw [rad²] (which DOF dominates)."""
+    w, spectrum = grid if grid is not None else _peak_grid(state)
+    rx, ry, rpsi = motion_raos(w, beta_rad, hull)
+    return (float(np.trapezoid(rx * rx * spectrum, w)), float(np.trapezoid(ry * ry * spectrum, w)),
+            float(np.trapezoid(rpsi * rpsi * spectrum, w)))
+
+
+@dataclass(frozen=True, slots=True)
+class SpectrumPeaks:
+    """Peaks that judge a wave filter (DESIGN trap 3).
+
+    Attributes
+    ----------
+    omega_peak_rad_s : float or None
+        Wave spectrum peak ωp (None in calm water) [rad/s].
+    motion_peak_rad_s : float or None
+        Peak of |RAO|²S of the dominant DOF [rad/s].
+    motion_peaks_rad_s : tuple of (float or None), or None
+        Peaks for surge, sway, yaw [rad/s] (None for a DOF without WF motion).
+    dominant_dof : int or None
+        0 surge, 1 sway, 2 yaw.
+    """
+
+    omega_peak_rad_s: float | None
+    motion_peak_rad_s: float | None
+    motion_peaks_rad_s: tuple[float | None, float | None, float | None] | None
+    dominant_dof: int | None
+
+
+NO_PEAKS = SpectrumPeaks(None, None, None, None)
+
+
+class WaveEnvironment:
+    """Piecewise-constant sea states with cross-fades, for one vessel.
+
+    Parameters
+    ----------
+    sea_states : sequence of SeaState
+        Sorted by ``t_s``; before the first one the sea is calm. Consecutive changes must be at
+        least the later one's ``fade_s`` apart (checked by the scenario schema).
+    hull : HullDimensions
+    rng_for : callable
+        ``rng_for(index) -> numpy.random.Generator``: an independent seeded stream per sea state,
+        so that adding a sea state does not change the earlier ones.
+    water_density_kgpm3, drift_scale : float
+    dominant_dof : int or None
+        Force the DOF whose motion peak is reported (2 = yaw for a heading autopilot); None picks
+        the largest of surge, sway and yaw·L/2.
+    """
+
+    def __init__(self, sea_states: Sequence[SeaState], hull: HullDimensions,
+                 rng_for: Callable[[int], np.random.Generator], *, water_density_kgpm3: float = 1025.0,
+                 drift_scale: float = 1.0, dominant_dof: int | None = None) -> None:
+        self.sea_states = tuple(sea_states)
+        for earlier, later in zip(self.sea_states, self.sea_states[1:], strict=False):
+            if later.t_s < earlier.t_s + later.fade_s:
+                raise ValueError(f"sea state at {later.t_s} s starts before the fade from {earlier.t_s} s ends")
+        self._starts = [s.t_s for s in self.sea_states]
+        self.hull = hull
+        self._rng_for = rng_for
+        self._rho = water_density_kgpm3
+        self._drift_scale = drift_scale
+        self._dominant = dominant_dof
+        self._fields: dict[int, WaveField | None] = {}
+        self._peak_cache: dict[tuple[int, int, int], SpectrumPeaks] = {}
+        self._peak_grids: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
+    def set_hull(self, hull: HullDimensions) -> None:
+        """Change the hull (draft during loading): RAO and drift tables are rebuilt."""
+        self.hull = hull
+        for field in self._fields.values():
+            if field is not None:
+                field.set_hull(hull)
+        self._peak_cache.clear()
+
+    def _field(self, index: int) -> WaveField | None:
+        if index not in self._fields:
+            state = self.sea_states[index]
+            if state.calm:
+                self._fields[index] = None
+            else:
+                comps = realise_waves(state.hs_m, state.omega_peak_rad_s, state.gamma, state.spectrum,
+                                      state.components, rng=self._rng_for(index))
+                self._fields[index] = WaveField(comps, state.direction_rad, self.hull, self._rho, self._drift_scale)
+            # fields two changes back can never be needed again (times only move forward)
+            for old in [i for i in self._fields if i < index - 1]:
+                del self._fields[old]
+        return self._fields[index]
+
+    def index_at(self, t_s: float) -> int:
+        """Index of the sea state in force at ``t_s`` (−1 before the first)."""
+        starts = self._starts
+        i = len(starts) - 1
+        while i >= 0 and starts[i] > t_s:
+            i -= 1
+        return i
+
+    def field_at(self, t_s: float) -> WaveField | None:
+        """The realised field of the sea state in force at ``t_s`` (None in calm water)."""
+        i = self.index_at(t_s)
+        return None if i < 0 else self._field(i)
+
+    def evaluate(self, t_s: float, north_m: float, east_m: float, heading_rad: float, *,
+                 north_rate_mps: float = 0.0, east_rate_mps: float = 0.0) -> WaveSample:
+        """WF motion and drift force at ``t_s`` for the vessel's LF pose and velocity."""
+        i = self.index_at(t_s)
+        if i < 0:
+            return CALM
+        state = self.sea_states[i]
+        new = self._field(i)
+        fading = i > 0 and state.fade_s > 0.0 and t_s < state.t_s + state.fade_s
+        if not fading:
+            if new is None:
+                return CALM
+            x, y, p, r, ac, as_ = new.evaluate(t_s, north_m, east_m, heading_rad, north_rate_mps=north_rate_mps,
+                                               east_rate_mps=east_rate_mps)
+            lx, ly, ln = new.drift_factors()
+            f = ac * ac + as_ * as_
+            return WaveSample(x, y, p, r, (f * lx, f * ly, f * ln))
+        u = (t_s - state.t_s) / state.fade_s
+        s = u * u * (3.0 - 2.0 * u)
+        w_new = math.sin(0.5 * math.pi * s)
+        w_old = math.cos(0.5 * math.pi * s)
+        total = [0.0, 0.0, 0.0, 0.0]
+        drift = [0.0, 0.0, 0.0]
+        for field, weight in ((self._field(i - 1), w_old), (new, w_new)):
+            if field is None:
+                continue
+            x, y, p, r, ac, as_ = field.evaluate(t_s, north_m, east_m, heading_rad, north_rate_mps=north_rate_mps,
+                                                 east_rate_mps=east_rate_mps, weight=weight)
+            total[0] += x
+            total[1] += y
+            total[2] += p
+            total[3] += r
+            # Envelopes of independent fields do not interfere in the mean; sum the forces.
+            lx, ly, ln = field.drift_factors()
+            f = ac * ac + as_ * as_
+            drift[0] += f * lx
+            drift[1] += f * ly
+            drift[2] += f * ln
+        return WaveSample(total[0], total[1], total[2], total[3], (drift[0], drift[1], drift[2]))
+
+    def peaks(self, t_s: float, heading_rad: float, speed_along_mps: float = 0.0) -> SpectrumPeaks:
+        """Wave and motion spectrum peaks of the sea state in force at ``t_s`` (the new one during
+        a fade), for the given heading and vessel speed along the wave direction."""
+        i = self.index_at(t_s)
+        if i < 0 or self.sea_states[i].calm:
+            return NO_PEAKS
+        state = self.sea_states[i]
+        beta = ssa(state.direction_rad + math.pi - heading_rad)
+        key = (i, round(math.degrees(beta)), round(speed_along_mps * 10.0))
+        cached = self._peak_cache.get(key)
+        if cached is not None:
+            return cached
+        beta_q = math.radians(key[1])
+        speed_q = key[2] / 10.0
+        grid = self._peak_grids.get(i)
+        if grid is None:
+            grid = self._peak_grids[i] = _peak_grid(state)
+        peaks = motion_peaks(state, self.hull, beta_q, speed_q, grid)
+        if self._dominant is not None:
+            dominant = self._dominant
+        else:
+            vx, vy, vpsi = motion_variances(state, self.hull, beta_q, grid)
+            scaled = (vx, vy, vpsi * (0.5 * self.hull.length_m) ** 2)
+            dominant = int(np.argmax(scaled))
+        if peaks[dominant] is None:  # e.g. yaw in exact head seas: report the largest that moves
+            moving = [d for d in range(3) if peaks[d] is not None]
+            dominant = moving[0] if moving else dominant
+        result = SpectrumPeaks(state.omega_peak_rad_s, peaks[dominant], peaks, dominant)
+        if len(self._peak_cache) > 4096:
+            self._peak_cache.clear()
+        self._peak_cache[key] = result
+        return result
+
+    def propagation_rad(self, t_s: float) -> float | None:
+        """Propagation direction (NED) of the sea state in force, None before the first."""
+        i = self.index_at(t_s)
+        return None if i < 0 else ssa(self.sea_states[i].direction_rad + math.pi)
