@@ -1,0 +1,349 @@
+"""Configuration of the DP wave filters: fields, validation and the default tuning rule.
+
+:class:`WaveFilterConfig` is a frozen dataclass validated on construction (errors are
+:class:`~dpcontrol.models.schema.ConfigError` naming the field). :meth:`WaveFilterConfig.from_options`
+builds one from the runtime's ``estimator`` section (kind, grid, ζ and a mapping of options) and
+reports errors with their key path (``estimator.weight_floor: expected a number in [0, 0.1], …``).
+
+Default tuning rule (every number can be overridden)
+----------------------------------------------------
+All defaults scale with the vessel length L (``length_m``, or estimated from the surge mass as
+``L ≈ (107·M11/ρ)^{1/3}``, i.e. block coefficient 0.7, L/B = 5, L/T = 15) and with the mass and
+damping matrices, so one rule serves a 1.3 m model (CyberShip II) and a 260 m tanker:
+
+* WF motion (seed 002 eq. (27)): standard deviation ``σ_wf = 0.01·L`` in surge/sway and 0.5° in
+  yaw, the motion of a moderate sea. ``wf_noise_rule = "equal_variance"`` (default): each model of
+  the bank gets the intensity ``q1 = 4ζ·ω0·σ_wf²``, so every model expects the same WF motion
+  variance and the models differ only in spectral shape — one of the two remedies for the MMAE trap
+  of DESIGN.md §5 (the other, the common error scale, is ``likelihood_scale``); on the seed 001
+  sea-state sequence it tracks the moderate sea more reliably than the alternative.
+  ``"equal_intensity"`` (seed 000): one intensity ``q1 = 4ζ·ω_ref·σ_wf²`` for all models (σ_wf at the
+  reference frequency ω_ref, geometric mean of the grid), so lower-frequency models expect more WF
+  motion (variance ∝ 1/ω0).
+* LF velocity noise w2: a force white noise that alone would make the first-order velocity dynamics
+  ``M_ii ν̇ + D_ii ν = w`` wander with standard deviation σ_ν: ``Q2_ii = 2·M_ii·D_ii·σ_ν²`` with
+  ``σ_ν = 0.002·√(gL)`` [m/s] in surge/sway and ``0.002·√(g/L)`` [rad/s] in yaw.
+* Bias w3 (seed 002 eq. (33) / seed 001 eq. (35)): the slowly varying environmental force is
+  expected to be of size ``σ_b = D̄·v_c`` with ``v_c = 0.02·√(gL)`` (a current of that speed; D̄ the
+  mean of D11 and D22; yaw: ``D33·v_c/L``). Random walk: ``Q3 = σ_b²/T_drift`` (the bias can
+  change by σ_b in ``bias_drift_time_s``); Markov with time constant T: ``Q3 = 2σ_b²/T``
+  (stationary standard deviation σ_b). Surge and sway share one value so the model is invariant
+  to the vessel-parallel rotation.
+* Measurement noise: ``σ_pos = 0.002·L`` (GNSS/DGNSS at full scale), heading 0.1° (gyro).
+* MMAE weights: common normalising covariance (``likelihood_scale="common"``), discrete Bayes
+  with forgetting time T_f = 200 s and a relative floor of 10⁻⁶ (see
+  :mod:`~dpcontrol.estimation.weighting` for why, and the tests for what they achieve).
+
+``process_noise_intensity`` (9 numbers, ``diag(Q1, Q2, Q3)`` in the units of
+:mod:`~dpcontrol.estimation.design_model`) overrides the rule, e.g. to reproduce seed 000 App. A.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, fields
+from typing import Any
+
+import numpy as np
+
+from dpcontrol.models.schema import ConfigError, Section, check_number, join
+
+KINDS = ("mmae", "kf", "rpem", "raw")
+WF_FRAMES = ("body", "earth")
+WF_NOISE_RULES = ("equal_intensity", "equal_variance")
+WEIGHTINGS = ("dwsg", "bayes")
+LIKELIHOOD_SCALES = ("common", "own")
+DEFAULT_OMEGAS_RAD_S = (0.3, 0.45, 0.6, 0.75, 0.9, 1.05, 1.2, 1.35)
+
+_GRAVITY_MPS2 = 9.81
+_RHO_KGPM3 = 1025.0
+
+
+def _tuple_of(value: Any, length: int | None, where: str, *, positive: bool = False,
+              nonnegative: bool = False) -> tuple[float, ...]:
+    if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, np.ndarray)):
+        raise ConfigError(where, f"a list of {length or 'some'} numbers", value)
+    if length is not None and len(value) != length:
+        raise ConfigError(where, f"a list of {length} numbers", value)
+    out = []
+    for i, item in enumerate(value):
+        minimum = 0.0 if (positive or nonnegative) else None
+        out.append(check_number(item, join(where, i), minimum=minimum, exclusive_minimum=positive))
+    return tuple(out)
+
+
+@dataclass(frozen=True, eq=False)
+class WaveFilterConfig:
+    """Everything a DP wave filter needs; see the module docstring for the tuning rule.
+
+    Attributes
+    ----------
+    mass_matrix, damping_matrix : ndarray, shape (3, 3)
+        M and D of the vessel (``VesselData.mass_matrix`` / ``damping_matrix``).
+    sample_time_s : float
+        Control period the filters are designed for [s].
+    kind : {"mmae", "kf", "rpem", "raw"}
+        Bank of steady-state filters / one filter at a fixed ω0 / RPEM adaptive-frequency filter /
+        LF model without wave states (wave filter off, seed 002 Fig. 7).
+    omegas_rad_s : tuple of float
+        mmae: the bank's peak frequencies; kf: one value; rpem: the initial ω0; raw: ignored [rad/s].
+    zeta : float
+        WF relative damping ζ of every model [-].
+    bias_time_constants_s : (Tx, Ty, Tψ) or None
+        None: random-walk bias (seed 002 eq. (33)); else the Markov bias of seed 001 eq. (35)
+        (Tx = Ty is required: the vessel-parallel rotation commutes with T only then, seed 001 eq. (27)).
+    wf_frame : {"body", "earth"}
+        WF states in body axes (seed 001 eq. (34), default: they do not turn with the heading) or
+        earth axes (seed 002: rotated with the vessel-parallel states when the heading changes).
+    length_m : float or None
+        Vessel length for the default tuning [m] (None: estimated from M11).
+    wf_position_std_m, wf_heading_std_rad : float or None
+        Expected WF motion standard deviation [m], [rad] (None: 0.01·L, 0.5°).
+    wf_reference_omega_rad_s : float or None
+        ω_ref of the equal-intensity rule [rad/s] (None: geometric mean of ``omegas_rad_s``).
+    wf_noise_rule : {"equal_variance", "equal_intensity"}
+    lf_velocity_std_mps, lf_yaw_rate_std_radps : float or None
+        σ_ν of the LF velocity noise rule [m/s], [rad/s].
+    bias_force_std_n, bias_moment_std_nm : float or None
+        σ_b of the bias rule [N], [N·m].
+    bias_drift_time_s : float
+        T_drift of the random-walk bias rule [s].
+    process_noise_intensity : tuple of 9 float or None
+        Explicit ``diag(Q1, Q2, Q3)``; overrides the four rules above.
+    position_noise_std_m, heading_noise_std_rad : float or None
+        Measurement noise per sample [m], [rad] (None: 0.002·L, 0.1°).
+    weighting : {"bayes", "dwsg"}
+        Discrete Bayes with forgetting (default), or the seed 000 eq. (18) DWSG (mmae); see
+        :mod:`~dpcontrol.estimation.weighting` for why Bayes is the default.
+    likelihood_scale : {"common", "own"}
+        ``common`` (default): every model's error measure uses one fixed normalising covariance
+        (minimum-energy criterion, seed 001 ref. [21]); ``own``: seed 000's ``β_i e^{−m_i}`` with each
+        filter's innovation covariance S_i (prone to the DESIGN.md §5 trap on real seas).
+    dwsg_rate_per_s : float
+        λ of the DWSG [1/s].
+    forgetting_time_s : float
+        T_f of the Bayes form [s] (α = exp(−dt/T_f)); ``math.inf`` for pure Bayes.
+    weight_floor : float
+        No weight falls below ``weight_floor`` × the largest weight (0 disables; see
+        :mod:`~dpcontrol.estimation.weighting`).
+    time_varying : bool
+        kf: run the time-varying Joseph-form filter instead of the steady-state one.
+    rpem_forgetting : float
+        λ of seed 003 eqs. (11)–(12) (0.996 in the paper).
+    rpem_omega_min_rad_s, rpem_omega_max_rad_s : float
+        Projection range of the RPEM ω0 estimate [rad/s].
+    rpem_initial_variance : float or None
+        Initial P of the RPEM recursion [(rad/s)²] (None: (0.3·ω0)²·(1 − λ_rpem)).
+    """
+
+    mass_matrix: np.ndarray
+    damping_matrix: np.ndarray
+    sample_time_s: float
+    kind: str = "mmae"
+    omegas_rad_s: tuple[float, ...] = DEFAULT_OMEGAS_RAD_S
+    zeta: float = 0.1
+    bias_time_constants_s: tuple[float, float, float] | None = None
+    wf_frame: str = "body"
+    length_m: float | None = None
+    wf_position_std_m: float | None = None
+    wf_heading_std_rad: float | None = None
+    wf_reference_omega_rad_s: float | None = None
+    wf_noise_rule: str = "equal_variance"
+    lf_velocity_std_mps: float | None = None
+    lf_yaw_rate_std_radps: float | None = None
+    bias_force_std_n: float | None = None
+    bias_moment_std_nm: float | None = None
+    bias_drift_time_s: float = 100.0
+    process_noise_intensity: tuple[float, ...] | None = None
+    position_noise_std_m: float | None = None
+    heading_noise_std_rad: float | None = None
+    weighting: str = "bayes"
+    likelihood_scale: str = "common"
+    dwsg_rate_per_s: float = 1.0
+    forgetting_time_s: float = 200.0
+    weight_floor: float = 1e-6
+    time_varying: bool = False
+    rpem_forgetting: float = 0.996
+    rpem_omega_min_rad_s: float = 0.2
+    rpem_omega_max_rad_s: float = 2.0
+    rpem_initial_variance: float | None = None
+
+    def __post_init__(self) -> None:
+        M = np.array(self.mass_matrix, dtype=float)
+        D = np.array(self.damping_matrix, dtype=float)
+        if M.shape != (3, 3) or not np.all(np.isfinite(M)):
+            raise ConfigError("mass_matrix", "a finite 3x3 matrix", self.mass_matrix)
+        if D.shape != (3, 3) or not np.all(np.isfinite(D)):
+            raise ConfigError("damping_matrix", "a finite 3x3 matrix", self.damping_matrix)
+        if np.any(np.linalg.eigvalsh(0.5 * (M + M.T)) <= 0.0):
+            raise ConfigError("mass_matrix", "a positive definite matrix", M.tolist())
+        if np.any(np.diag(D) <= 0.0):
+            raise ConfigError("damping_matrix", "positive diagonal damping", D.tolist())
+        M.setflags(write=False)
+        D.setflags(write=False)
+        object.__setattr__(self, "mass_matrix", M)
+        object.__setattr__(self, "damping_matrix", D)
+        check_number(self.sample_time_s, "sample_time_s", minimum=0.0, exclusive_minimum=True)
+        if self.kind not in KINDS:
+            raise ConfigError("kind", "one of " + ", ".join(KINDS), self.kind)
+        omegas = _tuple_of(self.omegas_rad_s, None, "omegas_rad_s", positive=True)
+        object.__setattr__(self, "omegas_rad_s", omegas)
+        needed = {"mmae": 1, "kf": 1, "rpem": 1, "raw": 0}[self.kind]
+        if len(omegas) < needed or (self.kind in ("kf", "rpem") and len(omegas) != 1):
+            raise ConfigError("omegas_rad_s", f"exactly one frequency for kind {self.kind}"
+                              if self.kind in ("kf", "rpem") else "at least one frequency", list(omegas))
+        if self.kind == "mmae" and len(set(omegas)) != len(omegas):
+            raise ConfigError("omegas_rad_s", "distinct frequencies", list(omegas))
+        check_number(self.zeta, "zeta", minimum=0.0, exclusive_minimum=True, maximum=1.0)
+        if self.bias_time_constants_s is not None:
+            T = _tuple_of(self.bias_time_constants_s, 3, "bias_time_constants_s", positive=True)
+            if T[0] != T[1]:
+                raise ConfigError("bias_time_constants_s", "Tx == Ty (seed 001 eq. (27): the vessel-parallel "
+                                  "rotation commutes with T only then)", list(T))
+            object.__setattr__(self, "bias_time_constants_s", T)
+        if self.wf_frame not in WF_FRAMES:
+            raise ConfigError("wf_frame", "one of " + ", ".join(WF_FRAMES), self.wf_frame)
+        if self.wf_noise_rule not in WF_NOISE_RULES:
+            raise ConfigError("wf_noise_rule", "one of " + ", ".join(WF_NOISE_RULES), self.wf_noise_rule)
+        if self.weighting not in WEIGHTINGS:
+            raise ConfigError("weighting", "one of " + ", ".join(WEIGHTINGS), self.weighting)
+        if self.likelihood_scale not in LIKELIHOOD_SCALES:
+            raise ConfigError("likelihood_scale", "one of " + ", ".join(LIKELIHOOD_SCALES), self.likelihood_scale)
+        for name in ("length_m", "wf_position_std_m", "wf_heading_std_rad", "wf_reference_omega_rad_s",
+                     "lf_velocity_std_mps", "lf_yaw_rate_std_radps", "bias_force_std_n", "bias_moment_std_nm",
+                     "position_noise_std_m", "heading_noise_std_rad", "rpem_initial_variance"):
+            value = getattr(self, name)
+            if value is not None:
+                check_number(value, name, minimum=0.0, exclusive_minimum=True)
+        check_number(self.bias_drift_time_s, "bias_drift_time_s", minimum=0.0, exclusive_minimum=True)
+        if self.process_noise_intensity is not None:
+            object.__setattr__(self, "process_noise_intensity",
+                               _tuple_of(self.process_noise_intensity, 9, "process_noise_intensity",
+                                         nonnegative=True))
+        check_number(self.dwsg_rate_per_s, "dwsg_rate_per_s", minimum=0.0, exclusive_minimum=True)
+        if not (isinstance(self.forgetting_time_s, (int, float)) and not isinstance(self.forgetting_time_s, bool)
+                and self.forgetting_time_s > 0.0 and not math.isnan(self.forgetting_time_s)):
+            raise ConfigError("forgetting_time_s", "a number > 0 (inf: no forgetting)", self.forgetting_time_s)
+        check_number(self.weight_floor, "weight_floor", minimum=0.0, maximum=0.1)
+        if not isinstance(self.time_varying, bool):
+            raise ConfigError("time_varying", "true or false", self.time_varying)
+        check_number(self.rpem_forgetting, "rpem_forgetting", minimum=0.9, maximum=1.0)
+        check_number(self.rpem_omega_min_rad_s, "rpem_omega_min_rad_s", minimum=0.0, exclusive_minimum=True)
+        check_number(self.rpem_omega_max_rad_s, "rpem_omega_max_rad_s", minimum=self.rpem_omega_min_rad_s,
+                     exclusive_minimum=True)
+        if self.kind == "rpem" and self.zeta >= 1.0:
+            raise ConfigError("zeta", "ζ < 1 for kind rpem (underdamped WF model)", self.zeta)
+        if self.kind == "rpem" and not self.rpem_omega_min_rad_s <= omegas[0] <= self.rpem_omega_max_rad_s:
+            raise ConfigError("omegas_rad_s", f"an initial ω0 in [{self.rpem_omega_min_rad_s:g}, "
+                              f"{self.rpem_omega_max_rad_s:g}] rad/s", omegas[0])
+
+    # ----------------------------------------------------------------------------------------
+    # Derived tuning (module docstring)
+    @property
+    def length_scale_m(self) -> float:
+        """L for the default rule [m]: ``length_m`` or ``(107·M11/ρ)^{1/3}``."""
+        if self.length_m is not None:
+            return float(self.length_m)
+        return float((107.0 * self.mass_matrix[0, 0] / _RHO_KGPM3) ** (1.0 / 3.0))
+
+    @property
+    def reference_omega_rad_s(self) -> float:
+        """ω_ref of the equal-intensity WF rule [rad/s]."""
+        if self.wf_reference_omega_rad_s is not None:
+            return float(self.wf_reference_omega_rad_s)
+        if not self.omegas_rad_s:
+            return 0.8
+        return float(np.exp(np.mean(np.log(self.omegas_rad_s))))
+
+    def wf_std(self) -> np.ndarray:
+        """Expected WF motion standard deviation (3,) [m, m, rad]."""
+        pos = self.wf_position_std_m if self.wf_position_std_m is not None else 0.01 * self.length_scale_m
+        yaw = self.wf_heading_std_rad if self.wf_heading_std_rad is not None else math.radians(0.5)
+        return np.array([pos, pos, yaw])
+
+    def wf_intensity(self, omega_rad_s: float) -> np.ndarray:
+        """Q1 (3,) of the model at ω0 [m²/s, m²/s, rad²/s] (explicit or by ``wf_noise_rule``)."""
+        if self.process_noise_intensity is not None:
+            return np.array(self.process_noise_intensity[0:3])
+        omega = omega_rad_s if self.wf_noise_rule == "equal_variance" else self.reference_omega_rad_s
+        return 4.0 * self.zeta * omega * self.wf_std() ** 2
+
+    def force_intensity(self) -> np.ndarray:
+        """Q2 (3,) [N²·s, N²·s, N²·m²·s]: ``2·M_ii·D_ii·σ_ν²``."""
+        if self.process_noise_intensity is not None:
+            return np.array(self.process_noise_intensity[3:6])
+        L = self.length_scale_m
+        v = self.lf_velocity_std_mps if self.lf_velocity_std_mps is not None else 0.002 * math.sqrt(_GRAVITY_MPS2 * L)
+        r = (self.lf_yaw_rate_std_radps if self.lf_yaw_rate_std_radps is not None
+             else 0.002 * math.sqrt(_GRAVITY_MPS2 / L))
+        return 2.0 * np.diag(self.mass_matrix) * np.diag(self.damping_matrix) * np.array([v, v, r]) ** 2
+
+    def bias_std(self) -> np.ndarray:
+        """σ_b (3,) [N, N, N·m] of the bias rule."""
+        L = self.length_scale_m
+        v_c = 0.02 * math.sqrt(_GRAVITY_MPS2 * L)
+        D = self.damping_matrix
+        force = self.bias_force_std_n if self.bias_force_std_n is not None else 0.5 * (D[0, 0] + D[1, 1]) * v_c
+        moment = self.bias_moment_std_nm if self.bias_moment_std_nm is not None else D[2, 2] * v_c / L
+        return np.array([force, force, moment])
+
+    def bias_intensity(self) -> np.ndarray:
+        """Q3 (3,) [N²/s, N²/s, N²·m²/s]."""
+        if self.process_noise_intensity is not None:
+            return np.array(self.process_noise_intensity[6:9])
+        if self.bias_time_constants_s is None:
+            return self.bias_std() ** 2 / self.bias_drift_time_s
+        return 2.0 * self.bias_std() ** 2 / np.asarray(self.bias_time_constants_s)
+
+    def measurement_covariance(self) -> np.ndarray:
+        """R (3, 3) per sample [m², m², rad²]."""
+        pos = self.position_noise_std_m if self.position_noise_std_m is not None else 0.002 * self.length_scale_m
+        yaw = self.heading_noise_std_rad if self.heading_noise_std_rad is not None else math.radians(0.1)
+        return np.diag([pos**2, pos**2, yaw**2])
+
+    # ----------------------------------------------------------------------------------------
+    @staticmethod
+    def from_options(mass_matrix: np.ndarray, damping_matrix: np.ndarray, sample_time_s: float, *, kind: str,
+                     omegas_rad_s: Sequence[float], zeta: float, options: Mapping[str, Any] | None = None,
+                     length_m: float | None = None, path: str = "estimator") -> WaveFilterConfig:
+        """Build from the runtime's estimator settings; errors carry ``path`` + the key.
+
+        Parameters
+        ----------
+        mass_matrix, damping_matrix : ndarray, shape (3, 3)
+        sample_time_s : float
+            Control period [s].
+        kind : str
+        omegas_rad_s : sequence of float
+        zeta : float
+        options : mapping, optional
+            Any other field of this class by name (YAML scalars/lists); unknown keys are rejected.
+        length_m : float, optional
+            Vessel length for the default tuning (an ``options`` entry wins).
+        path : str
+            Key path of the section, for error messages.
+
+        Raises
+        ------
+        ConfigError
+        """
+        section = Section.of(options, path)
+        known = {f.name for f in fields(WaveFilterConfig)} - {
+            "mass_matrix", "damping_matrix", "sample_time_s", "kind", "omegas_rad_s", "zeta"}
+        values: dict[str, Any] = {}
+        if length_m is not None:
+            values["length_m"] = length_m
+        for key in list(section.data):
+            if key in known:
+                value = section.raw(key)
+                if key == "forgetting_time_s" and value in ("inf", ".inf"):
+                    value = math.inf
+                values[key] = tuple(value) if isinstance(value, list) else value
+        section.finish()
+        try:
+            return WaveFilterConfig(mass_matrix=mass_matrix, damping_matrix=damping_matrix,
+                                    sample_time_s=sample_time_s, kind=kind, omegas_rad_s=tuple(omegas_rad_s),
+                                    zeta=zeta, **values)
+        except ConfigError as error:
+            raise ConfigError(join(path, error.path), error.expected, error.got, show_got=error.show_got) from None

@@ -1,0 +1,708 @@
+"""DP wave filters behind one protocol: MMAE bank, fixed-ω0 KF, RPEM, and "raw" (no wave states).
+
+The runtime calls every kind the same way (:class:`WaveFilter`): :meth:`~WaveFilter.reset` on the
+first fix, :meth:`~WaveFilter.predicted_measurement` for the sensor hub's prediction test, then one
+:meth:`~WaveFilter.step` per control period (correct with the measured channels, then predict with the
+force actually delivered), and ``state_dict``/``load_state_dict`` for a bumpless restart.
+
+Vessel-parallel frame (seed 002 eq. (14), seed 001 eqs. (17)–(38))
+------------------------------------------------------------------
+The linear model lives in vessel-parallel coordinates ``ηp = Rᵀ(ψ_f)η`` about a *frame heading*
+ψ_f, taken as the measured heading (seed 001: ``η_y^f = Rᵀ(ψ_y)η_y``), or the predicted total
+heading when no heading arrives. When ψ_f changes by Δψ between samples, every vessel-parallel
+vector (ηp, bp, and the WF states if they are earth-frame, seed 002) is rotated by ``Rᵀ(Δψ)`` — the
+discrete counterpart of the ``ψ̇S`` terms of seed 001 eqs. (30)–(31) — so the estimate in NED,
+``η = R(ψ_f)ηp``, is unchanged by the rotation itself: a 90° turn or a position 1 km from the datum
+does not corrupt it. Body-frame WF states (seed 001 eq. (34), default) and ν are not rotated.
+Yaw innovations are wrapped with ``ssa``; the heading states are kept continuous and shifted
+together by whole turns so the MMAE blend of headings never averages across ±π.
+
+Measurement availability
+------------------------
+North and east are used as a pair (a position fix has both); a lone coordinate, or a value that is
+not finite, is dropped and reported in ``WaveFilterOutput.measured``. Each pattern (position ±,
+heading ±) has its own precomputed steady-state gains (:func:`~dpcontrol.estimation.kalman.pattern_gains`);
+with nothing measured the filter only predicts (dead reckoning).
+
+MMAE weights
+------------
+Each model's error measure uses one common normalising covariance (minimum-energy criterion) and
+each model's WF noise intensity gives every model the same WF variance by default — the two
+remedies for the DESIGN.md §5 trap; weights follow the discrete Bayes recursion with forgetting and
+a floor (:mod:`~dpcontrol.estimation.weighting`), or the exactly integrated DWSG of seed 000 eq. (18).
+
+Timing and outputs
+------------------
+``step(y_k, τ_k)`` returns the *corrected* estimate at t_k (what the controller uses now) and leaves the
+one-step prediction for t_k+1 inside, made with τ_k — the force delivered over the coming period
+(the last delivered force is the usual stand-in). Output arrays are preallocated and *reused* every
+step (views): copy them to keep them.
+
+Usage::
+
+    config = WaveFilterConfig.from_options(vessel.mass_matrix, vessel.damping_matrix, 0.2, kind="mmae",
+                                           omegas_rad_s=[0.3, 0.45, 0.6, 0.75, 0.9, 1.05, 1.2, 1.35],
+                                           zeta=0.1, options={}, length_m=vessel.length_m)
+    wave_filter = make_wave_filter(config)
+    wave_filter.reset(first_fix_n)
+    ...
+    y_pred_n, innovation_var = wave_filter.predicted_measurement()   # sensor hub's jump test
+    out = wave_filter.step(y_n, tau_delivered_b, (pos_ok, pos_ok, heading_ok))
+    controller(out.eta_hat_n, out.nu_hat_b, out.bias_hat_b)
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from dpcontrol.estimation.config import WaveFilterConfig
+from dpcontrol.estimation.design_model import DesignModel, StateIndex, dp_design_model
+from dpcontrol.estimation.discretize import discretize
+from dpcontrol.estimation.kalman import KalmanFilter, SteadyStateFilter, pattern_code, pattern_gains
+from dpcontrol.estimation.weighting import bayes_step, dwsg_step
+from dpcontrol.models.frames import ssa, ssa_array
+
+STATE_DICT_VERSION = 1
+_FULL = pattern_code((True, True, True))
+_POSITION = pattern_code((True, True, False))
+_HEADING = pattern_code((False, False, True))
+_NONE = pattern_code((False, False, False))
+_USED_PATTERNS = (_FULL, _POSITION, _HEADING, _NONE)
+_MASKS = {code: np.array([code & 1, (code >> 1) & 1, (code >> 2) & 1], dtype=float) for code in _USED_PATTERNS}
+_MEASURED = {code: (bool(code & 1), bool(code & 2), bool(code & 4)) for code in _USED_PATTERNS}
+
+
+@dataclass(eq=False)
+class WaveFilterOutput:
+    """What a wave filter publishes after each step (arrays are reused views, see module docstring).
+
+    Attributes
+    ----------
+    eta_hat_n : ndarray, shape (3,)
+        LF pose [north_m, east_m, psi_rad] in NED, heading wrapped with ``ssa``.
+    nu_hat_b : ndarray, shape (3,)
+        LF body velocity [u_mps, v_mps, r_radps].
+    bias_hat_b : ndarray, shape (3,)
+        Bias force in body axes [N, N, N·m] (vessel-parallel at the current heading).
+    eta_wf_hat_n : ndarray, shape (3,)
+        WF motion [north_m, east_m, psi_rad] in NED (zeros for ``raw``).
+    covariance_diag : ndarray, shape (n,)
+        Diagonal of the estimation-error covariance of the full state (vessel-parallel coordinates,
+        state order of :class:`~dpcontrol.estimation.design_model.StateIndex`); for the MMAE the
+        mixture covariance ``Σ p_i (P_i + (x_i − x̂)(x_i − x̂)ᵀ)``.
+    innovation : ndarray, shape (3,)
+        ``y − ŷ⁻`` in NED [m, m, rad] (weight-averaged for the MMAE); 0 on unmeasured channels.
+    weights : ndarray, shape (N,) or None
+        MMAE model probabilities (None for the other kinds).
+    omegas_rad_s : tuple of float
+        The configured peak frequencies: the bank's grid (mmae), the fixed ω0 (kf), the initial ω0
+        (rpem), empty (raw) [rad/s].
+    omega_hat_rad_s : float or None
+        Weight-averaged peak frequency (mmae), RPEM estimate, the fixed ω0 (kf), None (raw) [rad/s].
+    measured : tuple of 3 bool
+        The channels actually used this step.
+    """
+
+    eta_hat_n: np.ndarray
+    nu_hat_b: np.ndarray
+    bias_hat_b: np.ndarray
+    eta_wf_hat_n: np.ndarray
+    covariance_diag: np.ndarray
+    innovation: np.ndarray
+    weights: np.ndarray | None
+    omegas_rad_s: tuple[float, ...]
+    omega_hat_rad_s: float | None
+    measured: tuple[bool, bool, bool] = (False, False, False)
+
+    @property
+    def eta_wf_hat(self) -> np.ndarray:
+        """Alias of :attr:`eta_wf_hat_n` (NED)."""
+        return self.eta_wf_hat_n
+
+
+@runtime_checkable
+class WaveFilter(Protocol):
+    """The protocol the runtime calls for every estimator kind."""
+
+    config: WaveFilterConfig
+
+    def reset(self, y_n: np.ndarray) -> None:
+        """Initialise on a fix [north_m, east_m, psi_rad]: LF pose = y, everything else 0.
+
+        What was learnt about the sea (MMAE weights, RPEM ω̂0) is kept when the filter was already
+        running: a re-initialisation of the pose does not change the sea state.
+        """
+        ...
+
+    def predicted_measurement(self) -> tuple[np.ndarray, np.ndarray]:
+        """(ŷ⁻ (3,) NED predicted for the next step, innovation variance diagonal (3,) in NED)."""
+        ...
+
+    def step(self, y_n: np.ndarray | None, tau_b: np.ndarray,
+             measured: tuple[bool, bool, bool] = (True, True, True)) -> WaveFilterOutput:
+        """One period: correct with y_n on the measured channels, then predict with τ_b [N, N, N·m]."""
+        ...
+
+    def state_dict(self) -> dict[str, Any]:
+        """JSON-able state for a bumpless restart."""
+        ...
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict`; raises ValueError (state untouched) if it does not fit."""
+        ...
+
+
+def build_design_model(config: WaveFilterConfig, omega_rad_s: float | None) -> DesignModel:
+    """The design model of ``config`` at ω0 (None: without wave states)."""
+    return dp_design_model(
+        config.mass_matrix, config.damping_matrix, omega_rad_s, zeta=config.zeta,
+        wf_intensity=None if omega_rad_s is None else config.wf_intensity(omega_rad_s),
+        force_intensity=config.force_intensity(), bias_intensity=config.bias_intensity(),
+        bias_time_constants_s=config.bias_time_constants_s)
+
+
+def _as_floats(value: Any, length: int, what: str) -> list[float]:
+    try:
+        if len(value) != length:
+            raise ValueError
+        return [float(v) for v in value]
+    except (TypeError, ValueError):
+        raise ValueError(f"{what} must be a sequence of {length} numbers, got {value!r}") from None
+
+
+class _FrameFilter:
+    """Shared input checking, vessel-parallel frame handling and output for every kind."""
+
+    kind: str
+
+    def __init__(self, config: WaveFilterConfig, index: StateIndex) -> None:
+        self.config = config
+        self.index = index
+        self.dt_s = config.sample_time_s
+        pairs = index.horizontal_pairs(rotate_waves=config.wf_frame == "earth")
+        self._ia = np.array([a for a, _ in pairs])
+        self._ib = np.array([b for _, b in pairs])
+        self._psi_frame = 0.0
+        self._initialized = False
+        self._y = np.zeros(3)
+        self._yp = np.zeros(3)
+        self._tau = np.zeros(3)
+        n = index.n
+        self._lf_tail = np.zeros(6)          # [bias (3), ν (3)]: contiguous in the state vector
+        self.output = WaveFilterOutput(
+            eta_hat_n=np.zeros(3), nu_hat_b=self._lf_tail[3:6], bias_hat_b=self._lf_tail[0:3],
+            eta_wf_hat_n=np.zeros(3),
+            covariance_diag=np.zeros(n), innovation=np.zeros(3), weights=None, omegas_rad_s=(),
+            omega_hat_rad_s=None)
+        self.rejected_samples = 0
+
+    # -- inputs -------------------------------------------------------------------------------
+    def _read_inputs(self, y_n: np.ndarray | None, tau_b: np.ndarray,
+                     measured: tuple[bool, bool, bool]) -> int:
+        """Validate; fill ``self._y``/``self._tau``; return the availability pattern code.
+
+        Raises ValueError (nothing changed) for a malformed τ or ``measured``; measurement values that
+        are not finite only drop their channel (a sensor must not crash the loop).
+        """
+        if not self._initialized:
+            raise RuntimeError("wave filter not initialised: call reset(y_n) on the first fix")
+        try:
+            t0, t1, t2 = float(tau_b[0]), float(tau_b[1]), float(tau_b[2])
+        except (TypeError, ValueError, IndexError):
+            raise ValueError(f"tau_b must be 3 numbers [N, N, N·m], got {tau_b!r}") from None
+        if not (math.isfinite(t0) and math.isfinite(t1) and math.isfinite(t2)):
+            raise ValueError(f"tau_b must be finite [N, N, N·m], got {tau_b!r}")
+        if len(measured) != 3:
+            raise ValueError(f"measured must be 3 booleans, got {measured!r}")
+        tau = self._tau
+        tau[0] = t0
+        tau[1] = t1
+        tau[2] = t2
+        if y_n is None:
+            return _NONE
+        use_pos = bool(measured[0]) and bool(measured[1])
+        use_psi = bool(measured[2])
+        y = self._y
+        try:
+            if use_pos:
+                north, east = float(y_n[0]), float(y_n[1])
+                if math.isfinite(north) and math.isfinite(east):
+                    y[0] = north
+                    y[1] = east
+                else:
+                    use_pos = False
+                    self.rejected_samples += 1
+            if use_psi:
+                psi = float(y_n[2])
+                if math.isfinite(psi):
+                    y[2] = psi
+                else:
+                    use_psi = False
+                    self.rejected_samples += 1
+        except (TypeError, ValueError, IndexError):
+            self.rejected_samples += 1
+            return _NONE
+        return (_POSITION if use_pos else 0) | (_HEADING if use_psi else 0)
+
+    def _check_reset(self, y_n: np.ndarray) -> list[float]:
+        y = _as_floats(y_n, 3, "y_n")
+        if not all(math.isfinite(v) for v in y):
+            raise ValueError(f"reset needs a finite fix [north_m, east_m, psi_rad], got {y_n!r}")
+        return y
+
+    # -- frame ------------------------------------------------------------------------------
+    def _rotate_states(self, x: np.ndarray, dpsi: float) -> None:
+        """Vessel-parallel vectors ← Rᵀ(Δψ)·(…) for the frame change Δψ (x: (..., n), in place)."""
+        c = math.cos(dpsi)
+        s = math.sin(dpsi)
+        xa = x[..., self._ia]
+        xb = x[..., self._ib]
+        x[..., self._ia] = c * xa + s * xb
+        x[..., self._ib] = c * xb - s * xa
+
+    def _rotation_matrix(self, dpsi: float) -> np.ndarray:
+        """T (n, n) with x_new = T x for the frame change Δψ (for covariances: T P Tᵀ)."""
+        T = np.eye(self.index.n)
+        self._rotate_states(T.T, dpsi)  # rotating the rows of Tᵀ = rotating the columns' images
+        return T
+
+    def _to_vessel_parallel(self, code: int) -> None:
+        """``y_p = [Rᵀ(ψ_f)·(north, east), ψ]`` for the current frame heading."""
+        c = math.cos(self._psi_frame)
+        s = math.sin(self._psi_frame)
+        y, yp = self._y, self._yp
+        if code & _POSITION:
+            yp[0] = c * y[0] + s * y[1]
+            yp[1] = -s * y[0] + c * y[1]
+        else:
+            yp[0] = 0.0
+            yp[1] = 0.0
+        yp[2] = y[2] if code & _HEADING else 0.0
+
+    def _write_pose(self, x_hat: np.ndarray) -> None:
+        """LF pose, velocity, bias and WF motion from the (blended) state, to NED."""
+        out = self.output
+        idx = self.index
+        c = math.cos(self._psi_frame)
+        s = math.sin(self._psi_frame)
+        v = x_hat.tolist()                  # Python floats: cheaper than numpy scalars for a few values
+        e0 = idx.eta.start
+        xp, yp = v[e0], v[e0 + 1]
+        out.eta_hat_n[:] = (c * xp - s * yp, s * xp + c * yp, ssa(v[e0 + 2]))
+        np.copyto(self._lf_tail, x_hat[idx.bias.start:idx.nu.stop])   # bias_hat_b and nu_hat_b are views
+        if idx.xi2 is not None:
+            w0 = idx.xi2.start
+            wx, wy = v[w0], v[w0 + 1]
+            out.eta_wf_hat_n[:] = (c * wx - s * wy, s * wx + c * wy, v[w0 + 2])
+
+    def _write_innovation(self, eps_p: np.ndarray) -> None:
+        """Innovation (vessel-parallel) → NED in the output."""
+        c = math.cos(self._psi_frame)
+        s = math.sin(self._psi_frame)
+        e0, e1, e2 = eps_p.tolist()
+        self.output.innovation[:] = (c * e0 - s * e1, s * e0 + c * e1, e2)
+
+    def _frame_state(self) -> dict[str, Any]:
+        return {"version": STATE_DICT_VERSION, "kind": self.kind, "n_states": self.index.n,
+                "sample_time_s": self.dt_s, "initialized": self._initialized,
+                "psi_frame_rad": self._psi_frame}
+
+    def _check_state(self, state: dict[str, Any]) -> None:
+        if not isinstance(state, dict):
+            raise ValueError("wave filter state must be a mapping")
+        for key, expected in (("version", STATE_DICT_VERSION), ("kind", self.kind), ("n_states", self.index.n)):
+            if state.get(key) != expected:
+                raise ValueError(f"wave filter state: {key} is {state.get(key)!r}, expected {expected!r}")
+        if not math.isclose(float(state.get("sample_time_s", -1.0)), self.dt_s, rel_tol=1e-9):
+            raise ValueError(f"wave filter state: sample_time_s {state.get('sample_time_s')!r} != {self.dt_s}")
+        psi = float(state.get("psi_frame_rad", math.nan))
+        if not math.isfinite(psi):
+            raise ValueError("wave filter state: psi_frame_rad must be finite")
+
+
+def _finite_array(value: Any, shape: tuple[int, ...], what: str) -> np.ndarray:
+    try:
+        array = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"wave filter state: {what} is not numeric") from None
+    if array.shape != shape or not np.all(np.isfinite(array)):
+        raise ValueError(f"wave filter state: {what} must be finite with shape {shape}")
+    return array
+
+
+class BankWaveFilter(_FrameFilter):
+    """A bank of N steady-state Kalman filters run as one batched computation.
+
+    ``kind="mmae"``: N models at the grid ``omegas_rad_s`` blended by the weights of
+    :mod:`~dpcontrol.estimation.weighting` (seed 000 eqs. (16)–(18), seed 001 eqs. (40)–(42));
+    ``kind="kf"``: one model at the fixed ω0; ``kind="raw"``: one model without wave states.
+
+    Every per-model quantity is stacked — Φ (N, n, n), gains (4 patterns, N, n, 3) — and one step is
+    a handful of batched ``matmul``/``einsum`` calls on preallocated arrays (no loop over models).
+    """
+
+    def __init__(self, config: WaveFilterConfig) -> None:
+        kind = config.kind
+        if kind not in ("mmae", "kf", "raw") or (kind == "kf" and config.time_varying):
+            raise ValueError(f"BankWaveFilter runs kinds mmae, kf (steady-state) and raw, not {kind!r}")
+        self.kind = kind
+        omegas: tuple[float | None, ...] = config.omegas_rad_s if kind != "raw" else (None,)
+        models = [build_design_model(config, w) for w in omegas]
+        super().__init__(config, models[0].index)
+        self.models = models
+        N = len(models)
+        n = self.index.n
+        R = config.measurement_covariance()
+        discrete = [discretize(m.A, m.B, m.E, m.Qc, config.sample_time_s) for m in models]
+        gains: list[dict[int, SteadyStateFilter]] = [pattern_gains(d.Phi, m.H, d.Qd, R)
+                                                     for d, m in zip(discrete, models, strict=True)]
+        self.H = models[0].H
+        self.Phi = np.stack([d.Phi for d in discrete])                      # (N, n, n)
+        self.Gamma = discrete[0].Gamma                                      # same for every model
+        # [Φ_i  Γ] (N, n, n+3): the prediction Φx̂ + Γτ is one batched matmul on [x̂ | τ].
+        self._Phi_aug = np.concatenate([self.Phi, np.broadcast_to(self.Gamma, (N, n, 3))], axis=2)
+        codes = _USED_PATTERNS
+        self._code_slot = {code: i for i, code in enumerate(codes)}
+        self.K = np.stack([np.stack([g[code].K for g in gains]) for code in codes])           # (4, N, n, 3)
+        self.P_post_diag = np.stack([np.stack([np.diag(g[code].P_post) for g in gains]) for code in codes])
+        self.S_prior = np.stack([g[_FULL].S for g in gains])                                  # (N, 3, 3)
+        self.steady_state = gains
+        self.omegas = np.array([w for w in omegas if w is not None], dtype=float)
+        # Error-measure weights per pattern: common fixed normalising covariance (minimum energy,
+        # rotation-invariant diag(s_pos, s_pos, s_psi)) or each filter's own S_i (seed 000).
+        s_mean = np.mean([np.diag(g[_FULL].S) for g in gains], axis=0)
+        s_common = np.array([0.5 * (s_mean[0] + s_mean[1])] * 2 + [s_mean[2]])
+        self._half_w_common = np.stack([-0.5 * _MASKS[code] / s_common for code in codes])  # (4, 3)
+        self._half_S_inv_own = np.stack([np.stack([-0.5 * g[code].S_inv for g in gains]) for code in codes])
+        self._log_beta_own = np.stack([np.array([-0.5 * g[code].log_det_S for g in gains]) for code in codes])
+        self.common_scale = s_common
+        self._common = config.likelihood_scale == "common"
+        self._bayes = config.weighting == "bayes"
+        self._forgetting = (1.0 if math.isinf(config.forgetting_time_s)
+                            else math.exp(-config.sample_time_s / config.forgetting_time_s))
+        self._log_floor = math.log(config.weight_floor) if config.weight_floor > 0.0 else -math.inf
+        # Preallocated state and work arrays.
+        self.x = np.zeros((N, n))
+        self.p = np.full(N, 1.0 / N)
+        self._log_w = np.zeros(N)
+        self._x_hat = np.zeros(n)
+        self._eps = np.zeros((N, 3))
+        self._eps2 = np.zeros((N, 3))
+        self._yhat = np.zeros((N, 3))
+        self._col = np.zeros((N, n, 1))
+        self._log_l = np.zeros(N)
+        self._work = np.zeros(N)
+        self._dev = np.zeros((N, n))
+        self._eps_bar = np.zeros(3)
+        self._xa = np.zeros((N, n + 3))      # [x̂ (posterior) | τ] per model
+        self._x_post = self._xa[:, :n]
+        self._heading = self.index.eta.start + 2
+        self._wf_heading = None if self.index.xi2 is None else self.index.xi2.start + 2
+        # The vectors that turn with the frame are whole 3-blocks ([ξ1, ξ2,] ηp, bp) stored
+        # contiguously: view their (x, y) components as (N, blocks, 2) to rotate them in one matmul.
+        idx = self.index
+        start = 0 if (config.wf_frame == "earth" and idx.has_waves) else idx.eta.start
+        blocks = (idx.bias.stop - start) // 3
+        self._xy = self.x[:, start:idx.bias.stop].reshape(N, blocks, 3)[:, :, :2]
+        if not np.shares_memory(self._xy, self.x):
+            raise RuntimeError("internal: the rotation view must alias the state array")
+        self._xy_tmp = np.zeros((N, blocks, 2))
+        self._rot = np.eye(2)
+        out = self.output
+        out.omegas_rad_s = tuple(float(w) for w in self.omegas)
+        out.weights = self.p if kind == "mmae" else None
+        out.omega_hat_rad_s = float(self.omegas[0]) if kind == "kf" else None
+
+    # -- protocol ---------------------------------------------------------------------------
+    def reset(self, y_n: np.ndarray) -> None:
+        y = self._check_reset(y_n)
+        self._psi_frame = ssa(y[2])
+        c, s = math.cos(self._psi_frame), math.sin(self._psi_frame)
+        self.x[:] = 0.0
+        e0 = self.index.eta.start
+        self.x[:, e0] = c * y[0] + s * y[1]
+        self.x[:, e0 + 1] = -s * y[0] + c * y[1]
+        self.x[:, e0 + 2] = self._psi_frame
+        if not self._initialized:
+            self.p[:] = 1.0 / self.p.size
+            self._log_w[:] = 0.0
+        self._initialized = True
+        self._blend_and_write(_NONE)
+        self.output.innovation[:] = 0.0
+        self.output.measured = (False, False, False)
+
+    def predicted_measurement(self) -> tuple[np.ndarray, np.ndarray]:
+        if not self._initialized:
+            raise RuntimeError("wave filter not initialised: call reset(y_n) on the first fix")
+        c, s = math.cos(self._psi_frame), math.sin(self._psi_frame)
+        yhat = self.x @ self.H.T                                              # (N, 3) vessel-parallel
+        rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        yhat_n = yhat @ rot.T                                                 # (N, 3) NED
+        p = self.p
+        mean = p @ yhat_n
+        dev = yhat_n - mean
+        S_n = np.einsum("ij,njk,lk->nil", rot, self.S_prior, rot)             # R S_i Rᵀ
+        var = p @ np.einsum("nii->ni", S_n) + p @ (dev * dev)
+        mean[2] = ssa(float(mean[2]))
+        return mean, var
+
+    def step(self, y_n: np.ndarray | None, tau_b: np.ndarray,
+             measured: tuple[bool, bool, bool] = (True, True, True)) -> WaveFilterOutput:
+        code = self._read_inputs(y_n, tau_b, measured)
+        x = self.x
+        # 1. Frame heading: the measured heading, else the predicted total heading (LF + WF).
+        if code & _HEADING:
+            psi_new = ssa(self._y[2])
+        else:
+            psi_total = float(self.p @ x[:, self._heading])
+            if self._wf_heading is not None:
+                psi_total += float(self.p @ x[:, self._wf_heading])
+            psi_new = ssa(psi_total)
+        self.set_frame_heading(psi_new)
+        # 2. Correction (seed 002 eq. (51)) with the pattern's steady-state gains: x̂ = x̄ + K ε.
+        eps = self._eps
+        x_post = self._x_post
+        if code != _NONE:
+            self._to_vessel_parallel(code)
+            np.matmul(x, self.H.T, out=self._yhat)
+            np.subtract(self._yp, self._yhat, out=eps)
+            # Yaw innovation wrapped with ssa: the models' predicted headings differ by far less
+            # than π, so one whole-turn offset (from model 0) wraps every model's innovation.
+            raw = float(eps[0, 2])
+            wrap = ssa(raw) - raw
+            if wrap != 0.0:
+                eps[:, 2] += wrap
+            eps *= _MASKS[code]
+            slot = self._code_slot[code]
+            np.matmul(self.K[slot], eps[:, :, None], out=self._col)
+            np.add(x, self._col[:, :, 0], out=x_post)
+            if self.kind == "mmae":
+                self._update_weights(slot)
+        else:
+            eps[:] = 0.0
+            np.copyto(x_post, x)
+        np.matmul(self.p, x_post, out=self._x_hat)
+        # Keep the heading states continuous but near (−π, π]: shift every model by whole turns.
+        turns = round(float(self._x_hat[self._heading]) / (2.0 * math.pi))
+        if turns:
+            x_post[:, self._heading] -= turns * 2.0 * math.pi
+            self._x_hat[self._heading] -= turns * 2.0 * math.pi
+        self._write_outputs(code)
+        # 3. Prediction (seed 002 eq. (52)) with the delivered force: x̄ = [Φ Γ]·[x̂ | τ].
+        self._xa[:, -3:] = self._tau
+        np.matmul(self._Phi_aug, self._xa[:, :, None], out=x[:, :, None])
+        return self.output
+
+    def set_frame_heading(self, psi_rad: float) -> None:
+        """Move the vessel-parallel frame to ψ_f = ψ: vectors ← Rᵀ(Δψ)·v (seed 001 ψ̇S terms).
+
+        The NED estimate is unchanged (row vectors v ← v·R(Δψ), one batched matmul over the bank).
+        """
+        dpsi = ssa(psi_rad - self._psi_frame)
+        if dpsi != 0.0:
+            c, s = math.cos(dpsi), math.sin(dpsi)
+            rot = self._rot
+            rot[0, 0] = c
+            rot[0, 1] = -s
+            rot[1, 0] = s
+            rot[1, 1] = c
+            np.matmul(self._xy, rot, out=self._xy_tmp)
+            self._xy[...] = self._xy_tmp
+        self._psi_frame = psi_rad
+
+    def model_lf_poses_n(self) -> np.ndarray:
+        """LF pose estimate of every model after the last correction, (N, 3) NED [m, m, rad].
+
+        Each row is what that model's steady-state filter alone would output (the filters of the bank
+        do not depend on the weights); for diagnostics and monitoring.
+        """
+        c, s = math.cos(self._psi_frame), math.sin(self._psi_frame)
+        e0 = self.index.eta.start
+        xp = self._x_post[:, e0]
+        yp = self._x_post[:, e0 + 1]
+        return np.stack([c * xp - s * yp, s * xp + c * yp, ssa_array(self._x_post[:, e0 + 2])], axis=1)
+
+    def _update_weights(self, slot: int) -> None:
+        """Error measures m_i and the weight update (discrete Bayes or seed 000 eq. (18) DWSG)."""
+        eps = self._eps
+        if self._common:
+            # log L_i = −½ εᵢᵀ S̄⁻¹ εᵢ with the common diagonal S̄ (minimum-energy criterion).
+            np.multiply(eps, eps, out=self._eps2)
+            np.matmul(self._eps2, self._half_w_common[slot], out=self._log_l)
+        else:
+            # log L_i = −½ ln det S_i − ½ εᵢᵀ S_i⁻¹ εᵢ (seed 000: β_i e^{−m_i}).
+            np.einsum("ni,nij,nj->n", eps, self._half_S_inv_own[slot], eps, out=self._log_l)
+            self._log_l += self._log_beta_own[slot]
+        if self._bayes:
+            bayes_step(self._log_w, self.p, self._log_l, forgetting=self._forgetting, log_floor=self._log_floor)
+        else:
+            config = self.config
+            dwsg_step(self.p, self._log_l, rate_per_s=config.dwsg_rate_per_s, dt_s=self.dt_s,
+                      floor=config.weight_floor, work=self._work)
+
+    def _blend_and_write(self, code: int) -> None:
+        """Outputs for the current (prior) state, as after reset or a restore."""
+        np.copyto(self._x_post, self.x)
+        np.matmul(self.p, self._x_post, out=self._x_hat)
+        self._write_outputs(code)
+
+    def _write_outputs(self, code: int) -> None:
+        """Outputs from the blended state ``_x_hat`` (seed 000 eq. (16)) and the mixture covariance."""
+        p = self.p
+        self._write_pose(self._x_hat)
+        out = self.output
+        slot = self._code_slot[code]
+        # Σ p_i (P_i + (x_i − x̂)²), diagonal of the mixture covariance
+        dev = self._dev
+        np.subtract(self._x_post, self._x_hat, out=dev)
+        np.multiply(dev, dev, out=dev)
+        dev += self.P_post_diag[slot]
+        np.matmul(p, dev, out=out.covariance_diag)
+        np.matmul(p, self._eps, out=self._eps_bar)
+        self._write_innovation(self._eps_bar)
+        out.measured = _MEASURED[code]
+        if self.kind == "mmae":
+            out.omega_hat_rad_s = float(p @ self.omegas)
+
+    # -- persistence --------------------------------------------------------------------------
+    def state_dict(self) -> dict[str, Any]:
+        state = self._frame_state()
+        state.update({"omegas_rad_s": [float(w) for w in self.omegas], "x": self.x.tolist(),
+                      "weights": self.p.tolist()})
+        return state
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        self._check_state(state)
+        omegas = _finite_array(state.get("omegas_rad_s"), self.omegas.shape, "omegas_rad_s")
+        if not np.allclose(omegas, self.omegas, rtol=1e-12, atol=0.0):
+            raise ValueError("wave filter state: omegas_rad_s differ from the configured bank")
+        x = _finite_array(state.get("x"), self.x.shape, "x")
+        p = _finite_array(state.get("weights"), self.p.shape, "weights")
+        if np.any(p < 0.0) or not math.isclose(float(p.sum()), 1.0, rel_tol=1e-6):
+            raise ValueError("wave filter state: weights must be >= 0 and sum to 1")
+        self.x[:] = x
+        self.p[:] = p / p.sum()
+        log_w = np.log(np.maximum(self.p, 1e-300))
+        self._log_w[:] = np.maximum(log_w - log_w.max(), self._log_floor)
+        self._psi_frame = float(state["psi_frame_rad"])
+        self._initialized = bool(state.get("initialized", True))
+        self._blend_and_write(_NONE)
+
+
+class TimeVaryingWaveFilter(_FrameFilter):
+    """One time-varying Joseph-form Kalman filter at a fixed ω0 (``kind="kf"``, ``time_varying=True``).
+
+    Seed 002 eqs. (51)–(54) with the covariance propagated every step; the covariance is rotated with
+    the states on a frame change (``P ← T P Tᵀ``).
+    """
+
+    kind = "kf"
+
+    def __init__(self, config: WaveFilterConfig) -> None:
+        if config.kind != "kf":
+            raise ValueError(f"TimeVaryingWaveFilter runs kind kf, not {config.kind!r}")
+        omega = config.omegas_rad_s[0]
+        model = build_design_model(config, omega)
+        super().__init__(config, model.index)
+        self.model = model
+        self.discrete = discretize(model.A, model.B, model.E, model.Qc, config.sample_time_s)
+        self.R = config.measurement_covariance()
+        gains = pattern_gains(self.discrete.Phi, model.H, self.discrete.Qd, self.R)
+        self._P0 = gains[_FULL].P_prior.copy()
+        self.filter = KalmanFilter(self.discrete.Phi, self.discrete.Gamma, model.H, self.discrete.Qd, self.R,
+                                   x0=np.zeros(model.n), P0=self._P0)
+        self._heading = model.index.eta.start + 2
+        self.output.omegas_rad_s = (float(omega),)
+        self.output.omega_hat_rad_s = float(omega)
+
+    def reset(self, y_n: np.ndarray) -> None:
+        y = self._check_reset(y_n)
+        self._psi_frame = ssa(y[2])
+        c, s = math.cos(self._psi_frame), math.sin(self._psi_frame)
+        x = np.zeros(self.index.n)
+        e0 = self.index.eta.start
+        x[e0] = c * y[0] + s * y[1]
+        x[e0 + 1] = -s * y[0] + c * y[1]
+        x[e0 + 2] = self._psi_frame
+        self.filter.x = x
+        self.filter.P = self._P0.copy()
+        self._initialized = True
+        self._write(np.zeros(3), _NONE)
+
+    def predicted_measurement(self) -> tuple[np.ndarray, np.ndarray]:
+        if not self._initialized:
+            raise RuntimeError("wave filter not initialised: call reset(y_n) on the first fix")
+        c, s = math.cos(self._psi_frame), math.sin(self._psi_frame)
+        rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        yhat = rot @ (self.filter.H @ self.filter.x)
+        yhat[2] = ssa(float(yhat[2]))
+        return yhat, np.diag(rot @ self.filter.innovation_covariance() @ rot.T).copy()
+
+    def step(self, y_n: np.ndarray | None, tau_b: np.ndarray,
+             measured: tuple[bool, bool, bool] = (True, True, True)) -> WaveFilterOutput:
+        code = self._read_inputs(y_n, tau_b, measured)
+        kf = self.filter
+        psi_new = ssa(self._y[2]) if code & _HEADING else ssa(float(kf.H[2] @ kf.x))
+        self.set_frame_heading(psi_new)
+        eps_full = np.zeros(3)
+        if code != _NONE:
+            self._to_vessel_parallel(code)
+            rows = np.flatnonzero(_MASKS[code])
+            eps_full = self._yp - kf.H @ kf.x
+            eps_full[2] = ssa(float(eps_full[2]))
+            eps_full *= _MASKS[code]
+            kf.correct(eps_full[rows], rows)
+        turns = round(float(kf.x[self._heading]) / (2.0 * math.pi))
+        if turns:
+            kf.x[self._heading] -= turns * 2.0 * math.pi
+        self._write(eps_full, code)
+        kf.predict(self._tau)
+        return self.output
+
+    def set_frame_heading(self, psi_rad: float) -> None:
+        """Move the vessel-parallel frame to ψ: x ← T x, P ← T P Tᵀ (NED estimate unchanged)."""
+        dpsi = ssa(psi_rad - self._psi_frame)
+        if dpsi != 0.0:
+            T = self._rotation_matrix(dpsi)
+            self.filter.x = T @ self.filter.x
+            self.filter.P = T @ self.filter.P @ T.T
+        self._psi_frame = psi_rad
+
+    def _write(self, eps_p: np.ndarray, code: int) -> None:
+        self._write_pose(self.filter.x)
+        self.output.covariance_diag[:] = np.diag(self.filter.P)
+        self._write_innovation(eps_p)
+        self.output.measured = _MEASURED[code]
+
+    def state_dict(self) -> dict[str, Any]:
+        state = self._frame_state()
+        state.update({"x": self.filter.x.tolist(), "P": self.filter.P.tolist()})
+        return state
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        self._check_state(state)
+        n = self.index.n
+        x = _finite_array(state.get("x"), (n,), "x")
+        P = _finite_array(state.get("P"), (n, n), "P")
+        if not np.allclose(P, P.T, rtol=1e-9, atol=0.0) or np.linalg.eigvalsh(0.5 * (P + P.T)).min() < 0.0:
+            raise ValueError("wave filter state: P must be symmetric positive semidefinite")
+        self.filter.x = x
+        self.filter.P = 0.5 * (P + P.T)
+        self._psi_frame = float(state["psi_frame_rad"])
+        self._initialized = bool(state.get("initialized", True))
+        self._write(np.zeros(3), _NONE)
+
+
+def make_wave_filter(config: WaveFilterConfig) -> WaveFilter:
+    """The wave filter for ``config.kind`` (mmae, kf, rpem, raw)."""
+    if config.kind == "rpem":
+        from dpcontrol.estimation.rpem import RpemWaveFilter  # noqa: PLC0415 — rpem imports this module
+
+        return RpemWaveFilter(config)
+    if config.kind == "kf" and config.time_varying:
+        return TimeVaryingWaveFilter(config)
+    return BankWaveFilter(config)
