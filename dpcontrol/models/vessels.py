@@ -121,7 +121,8 @@ def _deg(value: float) -> float:
 # M, D: seed 000 App. A eq. (A.1). m, Iz, xg, quadratic damping: Skjetne, Smogeli & Fossen
 # (2004), "Modeling, identification, and adaptive maneuvering of CyberShip II", MIC 25(1).
 # Thrusters: two aft main propellers with rudders and one bow tunnel thruster as in Skjetne et
-# al. (2004) and Lindegaard & Fossen (2003); force limits sized for the model-scale scenarios.
+# al. (2004) and Lindegaard & Fossen (2003); force limits sized for the model-scale scenarios
+# (layout and capability documented at the tuple).
 CYBERSHIP2 = VesselData(
     name="cybership2",
     description="CyberShip II, 1:70 scale supply vessel model (L = 1.255 m)",
@@ -137,6 +138,12 @@ CYBERSHIP2 = VesselData(
     quadratic_damping=[1.3274, 36.2823, 0.75],
     frontal_wind_area_m2=0.02,
     lateral_wind_area_m2=0.06,
+    # Layout: two aft main propellers at y = ∓0.055 m with rudders (±35°, lift 1.0/rad: a sway force up
+    # to 0.6·T ahead, none astern) and a reversible bow tunnel at x = 0.466 m. Limits are model-scale:
+    # 2 N ahead / 1 N astern per propeller, ±1 N tunnel, full thrust in ≈ 0.5 s, rudders 60°/s (model
+    # servos). Capability (dpcontrol.allocation.capability: wind, current and wave drift collinear,
+    # Froude-scaled 1:70): holds ≥ 12.9 m/s full-scale wind from every direction (26 m/s ahead). Not
+    # redundant: with a main propeller lost it cannot balance a beam load.
     thrusters=(
         ThrusterSpec("bow_tunnel", "tunnel", x_m=0.466, y_m=0.0, max_thrust_n=1.0, min_thrust_n=-1.0,
                      thrust_rate_limit_nps=2.0, time_constant_s=0.3, angle_rad=_deg(90.0)),
@@ -162,7 +169,7 @@ CYBERSHIP2 = VesselData(
 # Seed 001 uses "a typical 100 m DP supply vessel" in MCSim; this is the public stand-in.
 # Thrusters (issue 4: 2 tunnels + 2 azimuths): tunnel positions from the same model; azimuth
 # positions and all force limits estimated for a DP2 PSV of this size (2 × 1.0 MW tunnels,
-# 2 × 2.2 MW azimuths).
+# 2 × 2.2 MW azimuths); capability documented at the tuple.
 def _supply() -> VesselData:
     mass = 6.0e6
     length = 76.2
@@ -188,6 +195,11 @@ def _supply() -> VesselData:
                            0.5 * RHO_SEA_KGPM3 * 0.9 * 6.0 * (length / 4.0) ** 4],
         frontal_wind_area_m2=280.0,
         lateral_wind_area_m2=720.0,
+        # Layout: two reversible bow tunnels (x = 30 / 22 m, ±150 kN ≈ 1.0 MW each) give sway and yaw
+        # forward; two azimuths aft (x = −33 m, y = ∓4.5 m, 350 kN ≈ 2.2 MW each, 12°/s) give surge and
+        # sway/yaw aft. About 5–7 s from zero to full thrust. Capability (dpcontrol.allocation.capability,
+        # Beaufort-5-type collinear wind/current/waves): ≥ 14.0 m/s from every direction (22 m/s ahead,
+        # weakest ≈ 75° off the bow); worst single failure (a bow tunnel) 11.7 m/s — DP2-like redundancy.
         thrusters=(
             ThrusterSpec("bow_tunnel_1", "tunnel", x_m=30.0, y_m=0.0, max_thrust_n=150e3, min_thrust_n=-150e3,
                          thrust_rate_limit_nps=30e3, time_constant_s=2.0, angle_rad=_deg(90.0)),
@@ -217,7 +229,8 @@ SUPPLY = _supply()
 #   linear damping    from time constants M_ii/D_ii: surge 1000 s ("c ≪ c_M", seed 003), sway 100 s,
 #                     yaw 80 s — typical for DP tankers (current force ≈ 0.5 MN at 1 m/s beam on).
 # Thrusters (issue 4: bow tunnel + azimuth + main propeller): DP2 shuttle tanker layout with two bow
-# tunnels, a retractable bow azimuth, a stern tunnel and a CPP main propeller with rudder.
+# tunnels, a retractable bow azimuth, two stern tunnels and a CPP main propeller with rudder
+# (capability documented at the tuple).
 def _tanker(name: str, mass: float, draft: float, surge_added: float, description: str) -> VesselData:
     length = 260.0
     beam = 44.5
@@ -244,6 +257,15 @@ def _tanker(name: str, mass: float, draft: float, surge_added: float, descriptio
                            0.5 * RHO_SEA_KGPM3 * 0.7 * draft * (length / 4.0) ** 4],
         frontal_wind_area_m2=1200.0 if draft < 10.0 else 900.0,
         lateral_wind_area_m2=5200.0 if draft < 10.0 else 3200.0,
+        # Layout (a typical DP2 shuttle tanker, cf. the Navion class): two bow tunnels (x = 118 / 112 m,
+        # ±250 kN ≈ 1.8 MW), a retractable bow azimuth (x = 100 m, 300 kN, 8°/s), two stern tunnels
+        # (x = −112 / −104 m, ±200 kN) and the CPP main propeller (1.5 MN ahead, 0.9 MN astern,
+        # 100 kN/s) with a rudder (±35°, 3°/s, lift 0.8/rad). The second stern tunnel was added in the
+        # allocation review: with one, the stern could not balance a beam-on Beaufort 5 (capability
+        # 9.6 m/s ballast, 9.0 m/s full); now ≥ 11.1 m/s (ballast) / 10.5 m/s (full) from every direction
+        # (22 m/s ahead); worst single failure (a stern tunnel) 9.6 / 8.9 m/s
+        # (dpcontrol.allocation.capability). Shuttle tankers keep the weather near the bow (seed 003:
+        # aligned with the FPSO), where they hold about twice the beam-on wind.
         thrusters=(
             ThrusterSpec("bow_tunnel_1", "tunnel", x_m=118.0, y_m=0.0, max_thrust_n=250e3, min_thrust_n=-250e3,
                          thrust_rate_limit_nps=40e3, time_constant_s=3.0, angle_rad=_deg(90.0)),
@@ -252,6 +274,8 @@ def _tanker(name: str, mass: float, draft: float, surge_added: float, descriptio
             ThrusterSpec("bow_azimuth", "azimuth", x_m=100.0, y_m=0.0, max_thrust_n=300e3, min_thrust_n=0.0,
                          thrust_rate_limit_nps=40e3, time_constant_s=3.0, azimuth_rate_limit_radps=_deg(8.0)),
             ThrusterSpec("stern_tunnel", "tunnel", x_m=-112.0, y_m=0.0, max_thrust_n=200e3, min_thrust_n=-200e3,
+                         thrust_rate_limit_nps=40e3, time_constant_s=3.0, angle_rad=_deg(90.0)),
+            ThrusterSpec("stern_tunnel_2", "tunnel", x_m=-104.0, y_m=0.0, max_thrust_n=200e3, min_thrust_n=-200e3,
                          thrust_rate_limit_nps=40e3, time_constant_s=3.0, angle_rad=_deg(90.0)),
             ThrusterSpec("main_propeller", "propeller_rudder", x_m=-128.0, y_m=0.0, max_thrust_n=1500e3,
                          min_thrust_n=-900e3, thrust_rate_limit_nps=100e3, time_constant_s=5.0,
@@ -272,7 +296,8 @@ SHUTTLE_TANKER_FULL = _tanker("shuttle_tanker_full", 156_310e3, 16.1, 8_510e3,
 # L = 13.75 m, B = 2.38 m, m = 22,934 kg; fresh water (lake Silm). Seed 004 models it kinematically
 # (m·ẍ = X, eqs. (53)–(55)); the hydrodynamic data below are estimates: draft 0.87 m (VLCC 21 m / 24),
 # A11 = 5 % m, A22 = ρπT²L/2, Iz = m(0.25 L)², A66 = A22·L²/12, damping time constants 20/10/8 s.
-# Thrusters after Gierusz (2001): main propeller with rudder, bow and stern tunnel thrusters.
+# Thrusters after Gierusz (2001): main propeller with rudder, bow and stern tunnel thrusters
+# (capability documented at the tuple).
 def _blue_lady() -> VesselData:
     mass = 22_934.0
     length = 13.75
@@ -297,6 +322,11 @@ def _blue_lady() -> VesselData:
         frontal_wind_area_m2=2.5,
         lateral_wind_area_m2=9.0,
         water_density_kgpm3=RHO_FRESH_KGPM3,
+        # Layout: bow tunnel (x = 5.6 m, ±500 N), stern tunnel (x = −5.6 m, ±400 N) and the main
+        # propeller with rudder aft (1.2 kN ahead, 0.6 kN astern, ±35°, 10°/s — ≈ 2°/s at full scale by
+        # Froude scaling). Capability at the Froude-scaled 1:24 environment: ≥ 20 m/s full-scale wind
+        # from every direction (dpcontrol.allocation.capability). Not redundant: without the bow tunnel
+        # no beam load can be held.
         thrusters=(
             ThrusterSpec("bow_tunnel", "tunnel", x_m=5.6, y_m=0.0, max_thrust_n=500.0, min_thrust_n=-500.0,
                          thrust_rate_limit_nps=250.0, time_constant_s=1.0, angle_rad=_deg(90.0)),
@@ -352,6 +382,9 @@ def _mariner() -> VesselData:
         nomoto_gain_per_s=0.185,
         nomoto_time_constant_s=107.3,
         service_speed_mps=speed,
+        # Layout: one main propeller with rudder (±40°, 5°/s: the limits of Fossen's mariner model). Not
+        # a DP vessel — course keeping only, with the rudder commanded directly by the heading autopilot
+        # (δ = τ_N/N_δ, seed 002 eq. (67); dpcontrol.control.autopilot).
         thrusters=(
             ThrusterSpec("main_propeller", "propeller_rudder", x_m=-78.0, y_m=0.0, max_thrust_n=1.2e6,
                          min_thrust_n=-6.0e5, thrust_rate_limit_nps=1.0e5, time_constant_s=10.0,
@@ -383,6 +416,8 @@ def vessel_from_config(value: object, path: str = "vessel") -> VesselData:
     ConfigError
         Naming the key path and what was expected.
     """
+    if isinstance(value, VesselData):  # already built (e.g. a scenario's vessel handed to the controller)
+        return value
     if isinstance(value, str):
         if value not in BUILTIN_VESSELS:
             raise ConfigError(path, "a built-in vessel (" + ", ".join(BUILTIN_VESSELS) + ") or a mapping", value)

@@ -18,6 +18,9 @@ from typing import Any
 
 import yaml
 
+from dpcontrol.control import AutopilotConfig, MracConfig, PidConfig, control_config_from_mapping
+from dpcontrol.estimation import WaveFilterConfig
+from dpcontrol.guidance import ReferenceModelConfig, reference_config_from_mapping
 from dpcontrol.models.schema import ConfigError, Section, parse_list
 from dpcontrol.models.vessels import VesselData, vessel_from_config
 from dpcontrol.runtime.hub import HubConfig, SensorConfig, SensorKind
@@ -53,34 +56,26 @@ class SensorRoute:
     system_id: int | None = None  # MAVLink system ID filter
 
 
+ESTIMATOR_KINDS = ("mmae", "kf", "rpem", "raw", "kalman_bucy", "heading_kf")
+CONTROL_KINDS = ("mrac", "pid", "autopilot")
+
+
 @dataclass(frozen=True)
 class EstimatorSettings:
-    """Wave filter selection (mapped onto :mod:`dpcontrol.estimation`)."""
+    """Estimator selection; ``wave_filter`` is the validated core config for the DP wave filters
+    (mmae, kf, rpem, raw), ``options`` the keys of the adapters (kalman_bucy, heading_kf)."""
 
-    kind: str = "mmae"
-    omegas_rad_s: tuple[float, ...] = (0.3, 0.45, 0.6, 0.75, 0.9, 1.05, 1.2, 1.35)
-    zeta: float = 0.1
+    kind: str
+    wave_filter: WaveFilterConfig | None
     options: Mapping[str, Any] = field(default_factory=dict)
-
-
-@dataclass(frozen=True)
-class GuidanceSettings:
-    """Reference model: natural periods [s], damping, limits."""
-
-    natural_period_s: tuple[float, float, float] | None = None
-    damping: tuple[float, float, float] = (1.0, 1.0, 1.0)
-    max_speed_mps: float | None = None
-    max_yaw_rate_radps: float | None = None
-    max_acceleration_mps2: float | None = None
-    max_yaw_acceleration_radps2: float | None = None
 
 
 @dataclass(frozen=True)
 class ControlSettings:
-    """Controller selection and optional gains (mapped onto :mod:`dpcontrol.control`)."""
+    """Controller selection with its validated core configuration."""
 
-    kind: str = "mrac"
-    options: Mapping[str, Any] = field(default_factory=dict)
+    kind: str
+    config: PidConfig | MracConfig | AutopilotConfig
 
 
 @dataclass(frozen=True)
@@ -147,7 +142,7 @@ class DaemonConfig:
     transports: tuple[TransportConfig, ...]
     routes: tuple[SensorRoute, ...]
     estimator: EstimatorSettings
-    guidance: GuidanceSettings
+    guidance: ReferenceModelConfig
     control: ControlSettings
     allocation: Mapping[str, Any]
     hub: HubConfig
@@ -171,17 +166,6 @@ class DaemonConfig:
     def config_hash(self) -> str:
         """SHA-256 of the configuration text (recorded with every log, published as config)."""
         return hashlib.sha256(self.source_text.encode("utf-8")).hexdigest()
-
-
-Triple = tuple[float, float, float]
-
-
-def _tuple3(section: Section, key: str, default: Triple | None) -> Triple | None:
-    if not section.has(key):
-        section.raw(key, None)
-        return default
-    values = section.vector(key, 3)
-    return (float(values[0]), float(values[1]), float(values[2]))
 
 
 def _parse_transport(section: Section) -> TransportConfig:
@@ -271,6 +255,56 @@ def _parse_hub(section: Section) -> HubConfig:
     return HubConfig(**values)
 
 
+def _parse_estimator(section: Section, vessel: VesselData, rate_hz: float) -> EstimatorSettings:
+    kind = section.string("kind", "mmae", choices=ESTIMATOR_KINDS)
+    options = {k: v for k, v in section.data.items() if k != "kind"}
+    section._read.update(options)
+    section.finish()
+    if kind in ("kalman_bucy", "heading_kf"):
+        allowed = {"kalman_bucy": (), "heading_kf": ("omega0_rad_s", "zeta", "compass_std_deg")}[kind]
+        for key in options:
+            if key not in allowed:
+                valid = ", ".join(allowed) or "none"
+                raise ConfigError(f"{section.path}.{key}", f"a key of estimator {kind} ({valid})", show_got=False)
+        if kind == "heading_kf" and (vessel.nomoto_gain_per_s is None or vessel.nomoto_time_constant_s is None):
+            raise ConfigError(f"{section.path}.kind", "a vessel with a Nomoto model for heading_kf", vessel.name)
+        clean = dict(options)
+        if "compass_std_deg" in clean:
+            clean["compass_std_rad"] = math.radians(float(clean.pop("compass_std_deg")))
+        return EstimatorSettings(kind, None, clean)
+    omegas: tuple[float, ...]
+    if kind == "mmae":
+        omegas = tuple(float(v) for v in Section.of(options, section.path).vector(
+            "omegas_rad_s", None, [0.3, 0.45, 0.6, 0.75, 0.9, 1.05, 1.2, 1.35]))
+    elif kind == "kf":
+        omegas = (float(options.get("omega_rad_s", 0.8)),)
+    elif kind == "rpem":
+        omegas = (float(options.get("omega0_rad_s", 0.8)),)
+    else:
+        omegas = ()
+    zeta = options.get("zeta", 0.1)
+    extra = {k: v for k, v in options.items() if k not in ("omegas_rad_s", "omega_rad_s", "omega0_rad_s", "zeta")}
+    wave_filter = WaveFilterConfig.from_options(
+        vessel.mass_matrix, vessel.damping_matrix, 1.0 / rate_hz, kind=kind, omegas_rad_s=omegas or (0.8,),
+        zeta=zeta, options=extra, length_m=vessel.length_m, path=section.path)
+    return EstimatorSettings(kind, wave_filter, {})
+
+
+def _parse_control(section: Section, vessel: VesselData) -> ControlSettings:
+    kind = section.string("kind", "mrac", choices=CONTROL_KINDS)
+    if kind == "autopilot":
+        natural = section.number("natural_frequency_radps", 0.05, minimum=0.0, exclusive_minimum=True)
+        zeta = section.number("relative_damping", 0.8, minimum=0.0, exclusive_minimum=True)
+        section.finish()
+        try:
+            config = AutopilotConfig.for_vessel(vessel, natural, zeta)
+        except ValueError as error:
+            raise ConfigError(f"{section.path}.kind", "a vessel with a Nomoto model and a rudder", str(error)) from None
+        return ControlSettings(kind, config)
+    section._read.update(section.data)
+    return ControlSettings(kind, control_config_from_mapping(dict(section.data), vessel, section.path))
+
+
 def parse_config(mapping: object, *, file: str | None = None, text: str = "") -> DaemonConfig:
     """Validate a parsed YAML mapping into a :class:`DaemonConfig`.
 
@@ -320,47 +354,12 @@ def _parse(mapping: object, text: str, file: str | None) -> DaemonConfig:
     if not any(r.sensor.kind is SensorKind.HEADING for r in routes):
         raise ConfigError("sensors", "at least one sensor of kind heading", names)
 
-    est = root.section("estimator")
-    kind = est.string("kind", "mmae", choices=("mmae", "kf", "rpem", "raw"))
-    if kind == "mmae":
-        omegas = tuple(float(v) for v in est.vector("omegas_rad_s", None, list(EstimatorSettings.omegas_rad_s)))
-    elif kind == "kf":
-        omegas = (est.number("omega_rad_s", 0.8, minimum=0.05, maximum=5.0),)
-    elif kind == "rpem":
-        omegas = (est.number("omega0_rad_s", 0.8, minimum=0.05, maximum=5.0),)
-    else:
-        omegas = ()
-    for i, omega in enumerate(omegas):
-        if not 0.05 <= omega <= 5.0:
-            raise ConfigError(f"estimator.omegas_rad_s[{i}]", "a frequency in [0.05, 5] rad/s", omega)
-    zeta = est.number("zeta", 0.1, minimum=0.0, exclusive_minimum=True, maximum=1.0)
-    options = {k: v for k, v in est.data.items() if k not in ("kind", "omegas_rad_s", "omega_rad_s",
-                                                                 "omega0_rad_s", "zeta")}
-    est._read.update(options)
-    estimator = EstimatorSettings(kind, omegas, zeta, options)
-    est.finish()
-
-    gui = root.section("guidance")
-    guidance = GuidanceSettings(
-        natural_period_s=_tuple3(gui, "natural_period_s", None),
-        damping=_tuple3(gui, "damping", (1.0, 1.0, 1.0)) or (1.0, 1.0, 1.0),
-        max_speed_mps=gui.optional_number("max_speed_mps", minimum=0.0, exclusive_minimum=True),
-        max_yaw_rate_radps=None if not gui.has("max_yaw_rate_degps") else
-        math.radians(gui.number("max_yaw_rate_degps", minimum=0.0, exclusive_minimum=True)),
-        max_acceleration_mps2=gui.optional_number("max_acceleration_mps2", minimum=0.0, exclusive_minimum=True),
-        max_yaw_acceleration_radps2=None if not gui.has("max_yaw_acceleration_degps2") else
-        math.radians(gui.number("max_yaw_acceleration_degps2", minimum=0.0, exclusive_minimum=True)),
-    )
-    gui.raw("max_yaw_rate_degps", None)
-    gui.raw("max_yaw_acceleration_degps2", None)
-    gui.finish()
-
-    ctl = root.section("control")
-    control_kind = ctl.string("kind", "mrac", choices=("mrac", "pid", "pd_bias", "autopilot"))
-    control_options = {k: v for k, v in ctl.data.items() if k != "kind"}
-    ctl._read.update(control_options)
-    control = ControlSettings(control_kind, control_options)
-    ctl.finish()
+    estimator = _parse_estimator(root.section("estimator"), vessel, rate)
+    guidance = reference_config_from_mapping(root.raw("guidance", None), vessel, "guidance")
+    control = _parse_control(root.section("control"), vessel)
+    if (control.kind == "autopilot") != (estimator.kind == "heading_kf"):
+        raise ConfigError("control.kind", "autopilot together with estimator kind heading_kf (course keeping), "
+                          "or a DP controller with a DP estimator", control.kind)
 
     allocation_section = root.section("allocation")
     allocation = dict(allocation_section.data)

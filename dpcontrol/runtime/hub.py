@@ -124,6 +124,7 @@ class _SensorTrack:
     median_fail_since_t_s: float | None = None
     residual_variance: float | None = None  # measured noise variance (variance test) [m²] / [rad²]
     previous_residual: tuple[float, float] | None = None
+    previous_residual2: tuple[float, float] | None = None
     filtered: tuple[float, float] | None = None  # low-passed accepted value for the median test
     gst_sigma: float | None = None
     gst_t_s: float | None = None
@@ -350,19 +351,24 @@ class SensorHub:
                 track.detail = f"prediction test: {distance:.3g} > {limit:.3g}"
                 return
             track.rejecting_since_t_s = None
-            # Variance test on successive residuals about the prediction: differencing removes the
-            # slow part (bias, drift — the median test's job), leaving the sensor's noise.
+            # Variance test on the second difference of the residuals about the prediction: the
+            # prediction removes the vessel's motion, the second difference what is left of it that is
+            # smooth (bias, drift, slow prediction errors), leaving the sensor's white noise
+            # (var(r_k − 2r_{k−1} + r_{k−2}) = 6σ²).
             residual = (residual_value, residual_value2)
-            previous_residual = track.previous_residual
+            r1, r2 = track.previous_residual, track.previous_residual2
+            track.previous_residual2 = r1
             track.previous_residual = residual
-            if previous_residual is not None and track.last_accepted_t_s is not None and \
+            if r1 is not None and r2 is not None and track.last_accepted_t_s is not None and \
                     t_s - track.last_accepted_t_s <= 2.5 * track.nominal_period_s:
-                d0 = residual[0] - previous_residual[0]
-                d1 = residual[1] - previous_residual[1]
-                own = 0.5 * (d0 * d0 + d1 * d1) if is_heading else 0.25 * (d0 * d0 + d1 * d1)
+                d0 = residual[0] - 2.0 * r1[0] + r2[0]
+                d1 = residual[1] - 2.0 * r1[1] + r2[1]
+                own = d0 * d0 / 6.0 if is_heading else (d0 * d0 + d1 * d1) / 12.0
                 alpha = min(1.0, track.nominal_period_s / cfg.variance_time_constant_s)
                 track.residual_variance = own if track.residual_variance is None else \
                     (1.0 - alpha) * track.residual_variance + alpha * own
+        else:
+            track.previous_residual = track.previous_residual2 = None
         # Low-pass the accepted values for the median test, so noise does not flip it on and off.
         if track.filtered is None or track.last_accepted_t_s is None:
             track.filtered = value
@@ -386,7 +392,7 @@ class SensorHub:
         for track in live:
             track.rejecting_since_t_s = None
             track.residual_variance = None
-            track.previous_residual = None
+            track.previous_residual = track.previous_residual2 = None
             track.accepted_value = track.value
             track.last_accepted_t_s = track.last_t_s
             track.fresh = True
@@ -418,10 +424,28 @@ class SensorHub:
                                 SensorState.DISCONNECTED):
                 self.alarms.set(t_s, f"sensor.{name}.{alarm_state.value}", state is alarm_state, Severity.WARNING,
                                 f"{name}: {alarm_state.value} {track.detail}".strip())
-            noisy = track.residual_variance is not None and state is SensorState.OK and \
-                track.residual_variance > (cfg.variance_alarm_factor * track.config.sigma) ** 2
-            self.alarms.set(t_s, f"sensor.{name}.noisy", noisy, Severity.WARNING,
-                            f"{name}: noise above {cfg.variance_alarm_factor:g}× nominal (variance test)")
+            self.alarms.set(t_s, f"sensor.{name}.noisy", self._noisy(track, state), Severity.WARNING,
+                            f"{name}: noise above {cfg.variance_alarm_factor:g}× nominal and the other references "
+                            "(variance test)")
+
+    def _noisy(self, track: _SensorTrack, state: SensorState) -> bool:
+        """Variance alarm: the measured noise exceeds ``variance_alarm_factor`` × both its nominal and the
+        quietest other reference of the same kind.
+
+        The measured noise also holds what the wave filter could not predict (wave motion in a high
+        sea), common to every reference; comparing with the quietest other reference removes it. A
+        single reference has nothing to compare with, so it gets no alarm — its weight still follows
+        its measured variance.
+        """
+        if track.residual_variance is None or state is not SensorState.OK:
+            return False
+        others = [t.residual_variance for t in self._tracks.values()
+                  if t is not track and t.config.kind is track.config.kind and t.residual_variance is not None
+                  and t.state is SensorState.OK]
+        if not others:
+            return False
+        floor = max(track.config.sigma ** 2, min(others))
+        return track.residual_variance > self.config.variance_alarm_factor ** 2 * floor
 
     def _healthy(self, tracks: list[_SensorTrack], t_s: float) -> list[_SensorTrack]:
         return [t for t in tracks if t.state in (SensorState.OK, SensorState.ISOLATED) and

@@ -1,0 +1,108 @@
+"""Routing of decoded sensor messages to the configured sensors.
+
+A transport (serial port, CAN bus, MAVLink link) can carry several sensors — a GNSS compass sends
+GGA and HDT on one port, an NMEA 2000 bus has many source addresses — and several kinds of message
+for one sensor. :class:`SensorRouter` decides, from where a message came from (NMEA 0183 talker and
+sentence, NMEA 2000 source address, MAVLink system/component and message name) and what it is,
+which configured sensor it belongs to. The daemon applies it to what its transports deliver; the
+lockstep simulation applies the same rules to what its in-process decoders produce, so both see
+identical measurements.
+
+Defaults, chosen so that one physical quantity is not counted twice:
+
+* NMEA 0183 position sensors use GGA, GNS (and GST statistics); RMC only when listed in
+  ``sentences`` (a receiver sending GGA and RMC for the same epoch would otherwise double it);
+  heading sensors use HDT, THS (and ROT);
+* NMEA 2000: every position (129025, 129029) and heading (127250) PGN from the configured source
+  address (or any address when none is configured);
+* MAVLink: GPS_RAW_INT for position (GLOBAL_POSITION_INT is the autopilot's fused estimate, not a
+  reference), ATTITUDE for heading and rate of turn.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from dpcontrol.runtime.config import SensorRoute, TransportConfig
+from dpcontrol.runtime.hub import SensorKind
+from interfaces.messages import Heading, PositionErrorStats, PositionFix, RateOfTurn, SensorMessage
+
+NMEA_POSITION_DEFAULT = ("GGA", "GNS", "GST")
+NMEA_HEADING_DEFAULT = ("HDT", "THS", "ROT")
+MAVLINK_POSITION_MESSAGES = ("GPS_RAW_INT",)
+MAVLINK_HEADING_MESSAGES = ("ATTITUDE",)
+
+
+def message_kind(message: SensorMessage) -> SensorKind | None:
+    """Which kind of sensor a message feeds (None: not used by the hub)."""
+    if isinstance(message, PositionFix | PositionErrorStats):
+        return SensorKind.POSITION
+    if isinstance(message, Heading | RateOfTurn):
+        return SensorKind.HEADING
+    return None
+
+
+class SensorRouter:
+    """Maps (transport, origin, message) to a configured sensor name.
+
+    Parameters
+    ----------
+    routes : sequence of SensorRoute
+        The configured sensors and their filters.
+    transports : sequence of TransportConfig
+    """
+
+    def __init__(self, routes: Sequence[SensorRoute], transports: Sequence[TransportConfig]) -> None:
+        self._protocol = {t.name: t.protocol for t in transports}
+        self._by_transport: dict[str, list[SensorRoute]] = {t.name: [] for t in transports}
+        for route in routes:
+            self._by_transport[route.transport].append(route)
+        self.unrouted = 0
+
+    def routes_of(self, transport: str) -> list[SensorRoute]:
+        return self._by_transport.get(transport, [])
+
+    def nmea0183(self, transport: str, address: str, message: SensorMessage) -> str | None:
+        """Sensor for a message decoded from the NMEA 0183 sentence ``address`` (e.g. ``GPGGA``)."""
+        kind = message_kind(message)
+        talker, sentence = address[:2], address[2:]
+        if address.startswith("P"):  # proprietary: no talker field
+            talker, sentence = "", address
+        for route in self._by_transport.get(transport, ()):
+            if route.sensor.kind is not kind:
+                continue
+            allowed = route.sentences or (NMEA_POSITION_DEFAULT if kind is SensorKind.POSITION
+                                          else NMEA_HEADING_DEFAULT)
+            if sentence not in allowed and not (sentence == "GST" and kind is SensorKind.POSITION):
+                continue
+            if route.talker is not None and route.talker != talker:
+                continue
+            return route.sensor.name
+        self.unrouted += 1
+        return None
+
+    def nmea2000(self, transport: str, source_address: int, message: SensorMessage) -> str | None:
+        """Sensor for a message from NMEA 2000 ``source_address``."""
+        kind = message_kind(message)
+        for route in self._by_transport.get(transport, ()):
+            if route.sensor.kind is kind and route.source_address in (None, source_address):
+                return route.sensor.name
+        self.unrouted += 1
+        return None
+
+    def mavlink(self, transport: str, system_id: int, msg_name: str, message: SensorMessage) -> str | None:
+        """Sensor for a MAVLink message ``msg_name`` from ``system_id``."""
+        kind = message_kind(message)
+        allowed = MAVLINK_POSITION_MESSAGES if kind is SensorKind.POSITION else MAVLINK_HEADING_MESSAGES
+        if msg_name not in allowed:
+            self.unrouted += 1
+            return None
+        for route in self._by_transport.get(transport, ()):
+            if route.sensor.kind is kind and route.system_id in (None, system_id):
+                return route.sensor.name
+        self.unrouted += 1
+        return None
+
+    def sensors_on(self, transport: str) -> list[str]:
+        """Names of the sensors a transport feeds (all marked disconnected when it is)."""
+        return [route.sensor.name for route in self._by_transport.get(transport, ())]

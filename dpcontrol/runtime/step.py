@@ -1,0 +1,431 @@
+"""The control step shared by the daemon and the lockstep simulation.
+
+One call of :meth:`DpController.step` is one control period::
+
+    operator requests → sensor hub (quality tests, voting, fusion) → wave filter (predict-check-correct)
+    → modes and fall-backs → reference model → PD/PID/MRAC (or heading autopilot) → thruster health
+    → QP allocation → thruster commands, status
+
+Time is an argument (``t_s``): the daemon passes its monotonic clock, the lockstep simulation a
+stepped clock. Nothing here reads a clock, sleeps or does I/O, so the same inputs give the same
+commands — which is what makes a recorded run replayable.
+
+Modes (issue 7 §2): ``standby`` (no thrust), ``auto_heading`` (heading controlled, zero surge and
+sway force), ``auto_position`` (DP). Entering a controlled mode is bumpless: the reference model
+starts at the current estimate and velocity, and moves to the setpoint at its speed limits.
+Fall-backs (issue 8 §5, §7): position references lost → dead reckoning on the model (alarm) and,
+after ``dead_reckoning_limit_s``, the configured fall-back; heading lost → the configured
+fall-back after ``heading_loss_limit_s``. The allocator's thrust-rate limits make every transition
+a ramp, never a jump.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from enum import Enum
+from typing import Any
+
+import numpy as np
+
+from dpcontrol.allocation import AllocationResult, ThrustAllocator
+from dpcontrol.control import ALL_DOFS, HEADING_ONLY, AutopilotConfig, HeadingAutopilot, make_controller
+from dpcontrol.estimation import WaveFilterOutput
+from dpcontrol.guidance import Reference, ReferenceModel
+from dpcontrol.models.frames import body_to_ned
+from dpcontrol.runtime.alarms import AlarmRegistry, Severity
+from dpcontrol.runtime.config import DaemonConfig
+from dpcontrol.runtime.estimators import make_estimator
+from dpcontrol.runtime.hub import HubOutput, SensorHub
+from dpcontrol.runtime.thrusters import ThrusterFeedback, ThrusterMonitor
+from interfaces.geodesy import LocalFrame
+from interfaces.messages import Measurement
+from interfaces.zenoh.schemas import SetpointRequest
+
+STATE_VERSION = 1
+
+
+class Mode(str, Enum):
+    """Operating mode of the controller."""
+
+    STANDBY = "standby"
+    AUTO_HEADING = "auto_heading"
+    AUTO_POSITION = "auto_position"
+
+
+@dataclass
+class StepOutput:
+    """What one control period produced (reused between steps; copy what you keep).
+
+    Attributes
+    ----------
+    t_s : float
+        Time of the step [s].
+    mode : Mode
+    thrust_n, azimuth_rad : ndarray, shape (n,)
+        Thruster commands [N], [rad] (azimuth / rudder / fixed angle).
+    enabled : ndarray of bool, shape (n,)
+        Thrusters in use (unavailable ones are commanded zero).
+    tau_b, tau_achieved_b, shortfall_b : ndarray, shape (3,)
+        Demanded, allocated and missing generalized force [N, N, N·m].
+    setpoint_n : ndarray, shape (3,)
+        Operator target [north_m, east_m, psi_rad].
+    reference : Reference or None
+        Reference model output (None in standby).
+    estimate : WaveFilterOutput or None
+        The estimator's output (None until initialised).
+    hub : HubOutput
+        The fused measurement used.
+    mrac : mapping or None
+        MRAC parameter estimates.
+    rejected_requests : list of str
+        Operator requests refused this step, with the reason.
+    """
+
+    t_s: float = 0.0
+    mode: Mode = Mode.STANDBY
+    thrust_n: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    azimuth_rad: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    enabled: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    tau_b: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    tau_achieved_b: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    shortfall_b: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    setpoint_n: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    reference: Reference | None = None
+    estimate: WaveFilterOutput | None = None
+    hub: HubOutput | None = None
+    mrac: dict[str, float] | None = None
+    allocation: AllocationResult | None = None
+    rejected_requests: list[str] = field(default_factory=list)
+    mode_changes: list[tuple[str, str, str]] = field(default_factory=list)
+
+
+class DpController:
+    """The whole controller of one vessel: hub, estimator, guidance, control, allocation, modes.
+
+    Parameters
+    ----------
+    config : DaemonConfig
+        Validated configuration.
+    alarms : AlarmRegistry, optional
+        Shared registry (the daemon adds its own alarms to it).
+    stage_clock : callable, optional
+        A clock for per-stage timing (``dpcontrol bench``); None in normal operation.
+    """
+
+    def __init__(self, config: DaemonConfig, alarms: AlarmRegistry | None = None,
+                 stage_clock: Callable[[], float] | None = None) -> None:
+        self.config = config
+        self.alarms = alarms or AlarmRegistry()
+        vessel = config.vessel
+        self.dt_s = config.sample_time_s
+        datum = None if config.datum is None else LocalFrame(config.datum[0], config.datum[1])
+        self.hub = SensorHub(config.sensors, config.hub, self.alarms, datum)
+        self.estimator = make_estimator(config.estimator.kind, config.estimator.wave_filter, vessel, self.dt_s,
+                                        dict(config.estimator.options))
+        self.reference_model = ReferenceModel(config.guidance)
+        self.autopilot: HeadingAutopilot | None = None
+        if isinstance(config.control.config, AutopilotConfig):
+            self.autopilot = HeadingAutopilot(config.control.config)
+            self.controller = None
+        else:
+            self.controller = make_controller(config.control.config)
+        self.thrusters = vessel.thrusters
+        self.allocator = ThrustAllocator(vessel.thrusters, self.dt_s, **dict(config.allocation))
+        self.monitor = ThrusterMonitor(vessel.thrusters, config.thruster_monitor, self.alarms)
+        n = len(vessel.thrusters)
+        self.out = StepOutput(thrust_n=np.zeros(n), azimuth_rad=np.array([t.angle_rad for t in vessel.thrusters]),
+                              enabled=np.zeros(n, dtype=bool))
+        self.mode = Mode.STANDBY
+        self._requested_mode = Mode(config.initial_mode)
+        self.setpoint_n = np.zeros(3)
+        self._setpoint_given = False
+        self._estimator_ready = False
+        self._valid_since_t_s: float | None = None
+        self._last_t_s: float | None = None
+        self._tau_input_b = np.zeros(3)
+        self._zero3 = np.zeros(3)
+        self._fallback_reason = ""
+        self._engaged_once = False
+        self._shortfall_since: float | None = None
+        self._stage_clock = stage_clock
+        self.stage_us: dict[str, float] = {}
+        rudders = [i for i, t in enumerate(vessel.thrusters) if t.kind == "propeller_rudder"]
+        self._rudder_index = rudders[0] if rudders else None
+        # Nomoto sign: positive δ (force to starboard) on a rudder aft of the origin turns the bow to port.
+        self._rudder_sign = -1.0 if rudders and vessel.thrusters[rudders[0]].x_m < 0.0 else 1.0
+
+    # ------------------------------------------------------------------ requests
+    def request_mode(self, mode: str | Mode) -> None:
+        """Ask for a mode (applied at the next step, if the conditions allow)."""
+        self._requested_mode = Mode(mode)
+
+    def _apply_requests(self, t_s: float, requests: Iterable[SetpointRequest]) -> None:
+        out = self.out
+        for request in requests:
+            if request.changes_pose:
+                current = self.setpoint_n if self._setpoint_given else self._estimate_pose()
+                north, east, heading = request.resolve(float(current[0]), float(current[1]), float(current[2]))
+                self.setpoint_n[:] = (north, east, heading)
+                self._setpoint_given = True
+            if request.mode is not None:
+                try:
+                    self._requested_mode = Mode(request.mode)
+                except ValueError:
+                    out.rejected_requests.append(f"unknown mode {request.mode!r}")
+
+    def _estimate_pose(self) -> np.ndarray:
+        if self._estimator_ready and self.out.estimate is not None:
+            return self.out.estimate.eta_hat_n
+        return self.out.hub.y_n if self.out.hub is not None else self._zero3  # type: ignore[return-value]
+
+    # ------------------------------------------------------------------ the step
+    def step(self, t_s: float, measurements: Sequence[Measurement] = (),
+             feedback: Sequence[ThrusterFeedback] = (), requests: Sequence[SetpointRequest] = ()) -> StepOutput:
+        """One control period at time ``t_s`` [s] (see the module docstring)."""
+        clock = self._stage_clock
+        t0 = clock() if clock else 0.0
+        out = self.out
+        out.t_s = t_s
+        out.rejected_requests.clear()
+        out.mode_changes.clear()
+        dt = self.dt_s if self._last_t_s is None else min(max(t_s - self._last_t_s, 1e-3), 10.0 * self.dt_s)
+        self._last_t_s = t_s
+        self._apply_requests(t_s, requests)
+        self.monitor.feedback(feedback)
+
+        # --- sensor hub, against the estimator's prediction
+        predicted = variance = velocity_n = None
+        if self._estimator_ready:
+            predicted, variance = self.estimator.predicted_measurement()
+            estimate = out.estimate
+            if estimate is not None:
+                velocity_n = body_to_ned(estimate.nu_hat_b, float(estimate.eta_hat_n[2]))
+        hub = self.hub.update(t_s, measurements, predicted, variance, velocity_n)
+        out.hub = hub
+        t1 = clock() if clock else 0.0
+
+        # --- estimator
+        y = np.array(hub.y_n)
+        if not self._estimator_ready:
+            if hub.position_available and hub.heading_available:
+                self.estimator.reset(y)
+                self._estimator_ready = True
+                self._valid_since_t_s = t_s
+        elif hub.position_reset or hub.heading_reset:
+            self.estimator.reset(y)  # keeps the sea-state knowledge (MMAE weights, RPEM ω)
+            if self.mode is not Mode.STANDBY:
+                self.reference_model.reset(y)
+        if self._estimator_ready:
+            estimate = self.estimator.step(y, self._tau_input_b, hub.measured)
+            out.estimate = estimate
+        t2 = clock() if clock else 0.0
+
+        # --- modes and fall-backs
+        self._update_mode(t_s, hub)
+
+        # --- guidance and control
+        tau = out.tau_b
+        tau[:] = 0.0
+        out.mrac = None
+        rudder_command: float | None = None
+        if self.mode is Mode.STANDBY or out.estimate is None:
+            out.reference = None
+        else:
+            estimate = out.estimate
+            setpoint = self.setpoint_n
+            if self.mode is Mode.AUTO_HEADING:
+                target = np.array([estimate.eta_hat_n[0], estimate.eta_hat_n[1], setpoint[2]])
+            else:
+                target = setpoint
+            reference = self.reference_model.step(dt, target)
+            out.reference = reference
+            if self.autopilot is not None:
+                pilot = self.autopilot.step(dt, float(estimate.eta_hat_n[2]), float(estimate.nu_hat_b[2]),
+                                            float(reference.eta_d_n[2]), r_d_radps=float(reference.eta_dot_d_n[2]),
+                                            r_dot_d_radps2=float(reference.eta_ddot_d_n[2]))
+                rudder_command = pilot.rudder_rad
+                tau[2] = pilot.tau_n_nm
+            elif self.controller is not None:
+                dofs = HEADING_ONLY if self.mode is Mode.AUTO_HEADING else ALL_DOFS
+                control = self.controller.step(dt, estimate.eta_hat_n, estimate.nu_hat_b, estimate.bias_hat_b,
+                                               reference, dof_enabled=dofs)
+                tau[:] = control.tau_b
+                if control.parameters is not None:
+                    out.mrac = dict(control.parameters)
+        t3 = clock() if clock else 0.0
+
+        # --- thruster health and allocation
+        available = self.monitor.update(t_s, dt, out.thrust_n)
+        self._allocate(dt, available, rudder_command)
+        t4 = clock() if clock else 0.0
+
+        # --- what the estimator sees as the input of the next period: the delivered force
+        delivered = self.monitor.delivered()
+        if self.autopilot is not None:
+            rudder = 0.0 if self._rudder_index is None else float(out.azimuth_rad[self._rudder_index])
+            self._tau_input_b[:] = (0.0, 0.0, self._rudder_sign * rudder)
+        elif delivered is not None:
+            self._tau_input_b[:] = self.allocator.geometry.force_b(delivered[0], delivered[1])
+        else:
+            self._tau_input_b[:] = out.tau_achieved_b
+        if self.controller is not None and self.mode is not Mode.STANDBY:
+            self.controller.notify_achieved(out.tau_achieved_b)
+        self._capability_alarm(t_s)
+        if clock:
+            t5 = clock()
+            self.stage_us.update(hub=(t1 - t0) * 1e6, estimator=(t2 - t1) * 1e6, control=(t3 - t2) * 1e6,
+                                 allocation=(t4 - t3) * 1e6, finish=(t5 - t4) * 1e6)
+        out.mode = self.mode
+        out.setpoint_n[:] = self.setpoint_n
+        return out
+
+    def _allocate(self, dt: float, available: np.ndarray, rudder_command: float | None) -> None:
+        out = self.out
+        if self.mode is Mode.STANDBY or out.estimate is None:
+            # Standby: thrust ramps to zero within the drives' rate limits (no jump).
+            result = self.allocator.allocate(self._zero3, available, dt_s=dt)
+        elif self.autopilot is not None:
+            # Course keeping: the rudder is commanded directly; the propeller holds its thrust.
+            result = self.allocator.allocate(self._zero3, available, dt_s=dt)
+        else:
+            result = self.allocator.allocate(out.tau_b, available, dt_s=dt)
+        out.allocation = result
+        out.thrust_n[:] = result.thrust_n
+        out.azimuth_rad[:] = result.azimuth_rad
+        if rudder_command is not None and self._rudder_index is not None:
+            out.azimuth_rad[self._rudder_index] = self._rudder_sign * rudder_command
+        out.enabled[:] = available & (self.mode is not Mode.STANDBY)
+        out.tau_achieved_b[:] = result.tau_achieved_b
+        out.shortfall_b[:] = result.shortfall_b
+
+    def _update_mode(self, t_s: float, hub: HubOutput) -> None:
+        out = self.out
+        fb = self.config.fallback
+        wanted = self._requested_mode
+        # Auto-engage (HIL/lockstep convenience): DP once the estimator has settled.
+        auto = self.config.auto_engage_s
+        if auto is not None and not self._engaged_once and self._valid_since_t_s is not None \
+                and t_s - self._valid_since_t_s >= auto and wanted is Mode.STANDBY:
+            wanted = Mode.AUTO_POSITION
+            self._requested_mode = wanted
+        # Loss of references.
+        dead_reckoning = self._estimator_ready and not hub.position_available
+        self.alarms.set(t_s, "position.dead_reckoning", dead_reckoning and self.mode is Mode.AUTO_POSITION,
+                        Severity.ALARM, f"no position reference: dead reckoning for {hub.position_lost_s:.1f} s")
+        heading_lost = self._estimator_ready and not hub.heading_available
+        self.alarms.set(t_s, "heading.lost", heading_lost, Severity.ALARM,
+                        f"no heading reference for {hub.heading_lost_s:.1f} s")
+        if self.mode is not Mode.STANDBY:
+            if heading_lost and hub.heading_lost_s >= fb.heading_loss_limit_s:
+                wanted = Mode.STANDBY if fb.heading_loss == "standby" else Mode.AUTO_HEADING
+                self._fallback(t_s, wanted, "heading references lost")
+            elif self.mode is Mode.AUTO_POSITION and dead_reckoning and \
+                    hub.position_lost_s >= fb.dead_reckoning_limit_s:
+                wanted = Mode.STANDBY if fb.position_loss == "standby" else Mode.AUTO_HEADING
+                self._fallback(t_s, wanted, "position references lost")
+        if wanted is self.mode:
+            return
+        if wanted is not Mode.STANDBY:
+            refuse = None
+            if not self._estimator_ready:
+                refuse = "no estimate yet (position and heading references needed)"
+            elif not hub.heading_available:
+                refuse = "no heading reference"
+            elif wanted is Mode.AUTO_POSITION and not hub.position_available:
+                refuse = "no position reference"
+            if refuse is not None:
+                out.rejected_requests.append(f"{wanted.value} refused: {refuse}")
+                self._requested_mode = self.mode
+                return
+            estimate = out.estimate
+            assert estimate is not None
+            if self.mode is Mode.STANDBY:
+                # Bumpless entry: the reference starts at the estimate, moving as the vessel moves.
+                nu_n = body_to_ned(estimate.nu_hat_b, float(estimate.eta_hat_n[2]))
+                limits = self.config.guidance
+                speed = math.hypot(nu_n[0], nu_n[1])
+                if speed > limits.max_speed_mps:  # never start the reference faster than it may move
+                    nu_n[:2] *= limits.max_speed_mps / speed
+                nu_n[2] = max(-limits.max_yaw_rate_radps, min(limits.max_yaw_rate_radps, nu_n[2]))
+                self.reference_model.reset(estimate.eta_hat_n, nu_n)
+                if self.controller is not None:
+                    self.controller.reset()
+                if not self._setpoint_given:
+                    self.setpoint_n[:] = estimate.eta_hat_n
+            self._engaged_once = True
+        out.mode_changes.append((self.mode.value, wanted.value, self._fallback_reason or "operator"))
+        self._fallback_reason = ""
+        self.mode = wanted
+        self._requested_mode = wanted
+
+    def _fallback(self, t_s: float, mode: Mode, reason: str) -> None:
+        self._fallback_reason = f"fallback: {reason}"
+        self.alarms.raise_(t_s, "mode.fallback", Severity.ALARM, f"{reason}: fell back to {mode.value}")
+        self._requested_mode = mode
+
+    def _capability_alarm(self, t_s: float) -> None:
+        s = self.config.thruster_monitor
+        out = self.out
+        if self.mode is Mode.STANDBY:
+            self.alarms.clear(t_s, "thrusters.capability")
+            self._shortfall_since = None
+            return
+        scale = self.allocator.capability_scale
+        short = bool(np.any(np.abs(out.shortfall_b) > s.shortfall_fraction * scale))
+        since = self._shortfall_since
+        if short:
+            if since is None:
+                self._shortfall_since = t_s
+                since = t_s
+            if t_s - since >= s.shortfall_persist_s:
+                self.alarms.raise_(t_s, "thrusters.capability", Severity.ALARM,
+                                   "thrust demand exceeds the capability of the available thrusters")
+        else:
+            self._shortfall_since = None
+            self.alarms.clear(t_s, "thrusters.capability")
+
+    # ------------------------------------------------------------------ persistence
+    def state_dict(self, t_s: float) -> dict[str, Any]:
+        """Everything needed to resume without a jump (issue 9 §4); JSON-able."""
+        state: dict[str, Any] = {
+            "version": STATE_VERSION, "t_s": t_s, "config_sha256": self.config.config_hash,
+            "mode": self.mode.value, "setpoint_n": self.setpoint_n.tolist(), "setpoint_given": self._setpoint_given,
+            "datum": None if self.hub.datum is None else [self.hub.datum.lat0_deg, self.hub.datum.lon0_deg],
+            "allocator": self.allocator.state_dict(), "monitor": self.monitor.state_dict(),
+            "thrust_n": self.out.thrust_n.tolist(), "azimuth_rad": self.out.azimuth_rad.tolist(),
+        }
+        if self._estimator_ready:
+            state["estimator"] = self.estimator.state_dict()
+        if self.mode is not Mode.STANDBY:
+            state["reference"] = self.reference_model.state_dict()
+        if self.controller is not None:
+            state["controller"] = self.controller.state_dict()
+        return state
+
+    def load_state_dict(self, state: dict[str, Any], t_s: float) -> None:
+        """Resume from :meth:`state_dict` (the caller checked its age and config hash)."""
+        if state.get("version") != STATE_VERSION:
+            raise ValueError("persisted state of another version")
+        if state.get("datum") is not None and self.hub.datum is None:
+            self.hub.datum = LocalFrame(*state["datum"])
+        self.allocator.load_state_dict(state["allocator"])
+        self.monitor.load_state_dict(state.get("monitor", {}))
+        self.out.thrust_n[:] = state["thrust_n"]
+        self.out.azimuth_rad[:] = state["azimuth_rad"]
+        self.setpoint_n[:] = state["setpoint_n"]
+        self._setpoint_given = bool(state.get("setpoint_given", True))
+        if "estimator" in state:
+            self.estimator.load_state_dict(state["estimator"])
+            self._estimator_ready = True
+            self._valid_since_t_s = t_s
+        if self.controller is not None and "controller" in state:
+            self.controller.load_state_dict(state["controller"])
+        mode = Mode(state.get("mode", "standby"))
+        if mode is not Mode.STANDBY and "reference" in state and self._estimator_ready:
+            self.reference_model.load_state_dict(state["reference"])
+            self.mode = mode
+            self._requested_mode = mode
+            self._engaged_once = True
+        self._last_t_s = t_s

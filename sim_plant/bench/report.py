@@ -1,0 +1,315 @@
+"""Outputs of ``sim-plant run``: ``timeseries.csv``, ``summary.json`` and the PNG plots (DESIGN.md §4.3).
+
+The time series has one row per control step and the columns of DESIGN.md §4.3 (empty cell where
+a value does not exist, headings wrapped to (−π, π]); the summary lists the bank's model
+frequencies and the metrics an engineer judges a run by: station-keeping error against the
+reference, estimation error against the plant's true low-frequency motion, the wave filter's
+frequency estimate against the wave and motion spectrum peaks (DESIGN.md §5 trap 3), the
+wave-frequency content of the commanded force, the MRAC mass estimate against the true mass, and
+the alarms and mode changes.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dpcontrol.models.frames import ssa_array
+from sim_plant.bench.lockstep import Columns, RunResult
+
+PLOT_POINTS = 20000
+
+
+def write_timeseries_csv(columns: Columns, path: Path) -> None:
+    """Write the rows as CSV: ``%.9g`` numbers, an empty cell for a missing value (NaN)."""
+    data = columns.data[: columns.rows]
+    fmt = ",".join(["%.9g"] * data.shape[1]) + "\n"
+    with path.open("w", encoding="utf-8", newline="") as handle:
+        handle.write(",".join(columns.names) + "\n")
+        chunk = 4096
+        for start in range(0, data.shape[0], chunk):
+            block = "".join(fmt % tuple(row) for row in data[start:start + chunk].tolist())
+            handle.write(block.replace("nan", ""))
+
+
+def wrap_headings(columns: Columns) -> None:
+    """Wrap every ``*heading*_rad`` column to (−π, π] in place."""
+    for i, name in enumerate(columns.names):
+        if "heading" in name and name.endswith("_rad"):
+            values = columns.data[: columns.rows, i]
+            finite = np.isfinite(values)
+            values[finite] = ssa_array(values[finite])
+
+
+def _rms(x: np.ndarray) -> float | None:
+    x = x[np.isfinite(x)]
+    return None if x.size == 0 else float(np.sqrt(np.mean(x * x)))
+
+
+def _max_abs(x: np.ndarray) -> float | None:
+    x = x[np.isfinite(x)]
+    return None if x.size == 0 else float(np.max(np.abs(x)))
+
+
+def _round(value: float | None, digits: int = 6) -> float | None:
+    return None if value is None or not math.isfinite(value) else round(value, digits)
+
+
+def wave_frequency_std(signal: np.ndarray, dt_s: float, low_rad_s: float) -> float | None:
+    """Standard deviation of the part of ``signal`` above ``low_rad_s`` (FFT high-pass).
+
+    The wave-frequency content of a commanded force: a wave filter should keep it small.
+    """
+    x = signal[np.isfinite(signal)]
+    if x.size < 64:
+        return None
+    x = x - x.mean()
+    spectrum = np.fft.rfft(x)
+    omega = 2.0 * math.pi * np.fft.rfftfreq(x.size, dt_s)
+    spectrum[omega < low_rad_s] = 0.0
+    return float(np.std(np.fft.irfft(spectrum, x.size)))
+
+
+def summarise(result: RunResult) -> dict[str, Any]:
+    """Metrics of a run (see the module docstring)."""
+    c = result.columns
+    d = c.data[: c.rows]
+
+    def col(name: str) -> np.ndarray:
+        return d[:, c.index(name)]
+
+    dt = result.config.sample_time_s
+    t = col("t_s")
+    mode = col("mode")
+    engaged = np.flatnonzero(mode > 0)
+    summary: dict[str, Any] = {
+        "scenario": result.scenario.name,
+        "vessel": result.scenario.vessel.name,
+        "duration_s": _round(float(t[-1]), 3),
+        "seed": result.scenario.seed,
+        "sample_time_s": dt,
+        "steps": result.steps,
+        "estimator": result.config.estimator.kind,
+        "control": result.config.control.kind,
+        "model_frequencies_rad_s": list(result.omegas_rad_s),
+        "wall_time_s": _round(result.wall_s, 3),
+        "speed_x_realtime": _round(float(t[-1]) / result.wall_s if result.wall_s > 0 else None, 1),
+        "mode_changes": [{"t_s": round(m[0], 3), "from": m[1], "to": m[2], "reason": m[3]}
+                         for m in result.mode_changes],
+        "alarms": result.alarms,
+        "counters": result.counters,
+    }
+    metrics: dict[str, Any] = {}
+    if engaged.size:
+        k0 = int(engaged[0])
+        summary["engaged_at_s"] = _round(float(t[k0]), 3)
+        sl = slice(k0, None)
+        e_n = col("north_m")[sl] - col("ref_north_m")[sl]
+        e_e = col("east_m")[sl] - col("ref_east_m")[sl]
+        e_h = ssa_array(col("heading_rad")[sl] - col("ref_heading_rad")[sl])
+        horizontal = np.hypot(e_n, e_e)
+        metrics["position_error_rms_m"] = _round(_rms(horizontal))
+        metrics["position_error_max_m"] = _round(_max_abs(horizontal))
+        metrics["heading_error_rms_deg"] = _round(None if _rms(e_h) is None else math.degrees(_rms(e_h)))
+        metrics["heading_error_max_deg"] = _round(None if _max_abs(e_h) is None else math.degrees(_max_abs(e_h)))
+        total = np.hypot(col("north_total_m")[sl] - col("ref_north_m")[sl], col("east_total_m")[sl]
+                         - col("ref_east_m")[sl])
+        metrics["total_position_error_max_m"] = _round(_max_abs(total))
+    est = slice(int(np.flatnonzero(np.isfinite(col("est_north_m")))[0]) if np.any(np.isfinite(col("est_north_m")))
+                else d.shape[0], None)
+    metrics["estimate_error_rms_north_m"] = _round(_rms(col("est_north_m")[est] - col("north_m")[est]))
+    metrics["estimate_error_rms_east_m"] = _round(_rms(col("est_east_m")[est] - col("east_m")[est]))
+    metrics["estimate_error_rms_heading_deg"] = _round(
+        None if _rms(ssa_array(col("est_heading_rad")[est] - col("heading_rad")[est])) is None
+        else math.degrees(_rms(ssa_array(col("est_heading_rad")[est] - col("heading_rad")[est]))))
+    omega_hat = col("omega_hat_rad_s")
+    if np.any(np.isfinite(omega_hat)):
+        tail = slice(int(0.8 * d.shape[0]), None)
+        metrics["omega_hat_final_rad_s"] = _round(float(omega_hat[np.isfinite(omega_hat)][-1]))
+        metrics["omega_hat_mean_last_20pct_rad_s"] = _round(float(np.nanmean(omega_hat[tail])))
+    peak = col("omega_peak_rad_s")
+    motion = col("motion_peak_rad_s")
+    if np.any(np.isfinite(peak)):
+        metrics["wave_peak_final_rad_s"] = _round(float(peak[np.isfinite(peak)][-1]))
+    if np.any(np.isfinite(motion)):
+        metrics["motion_peak_final_rad_s"] = _round(float(motion[np.isfinite(motion)][-1]))
+    if result.omegas_rad_s:
+        first = c.index("weight_0")
+        weights = d[:, first:first + len(result.omegas_rad_s)]
+        final = weights[-1]
+        if np.all(np.isfinite(final)):
+            best = int(np.argmax(final))
+            metrics["dominant_model_final_rad_s"] = result.omegas_rad_s[best]
+            metrics["dominant_weight_final"] = _round(float(final[best]))
+            metrics["weights_final"] = [_round(float(w)) for w in final]
+        summary["dominant_model_by_sea_state"] = _dominant_by_sea_state(result, weights, t)
+    low = None
+    motion_values = motion[np.isfinite(motion)]
+    if motion_values.size:
+        low = 0.5 * float(np.min(motion_values))
+    if low is not None and engaged.size:
+        sl = slice(int(engaged[0]), None)
+        metrics["tau_wave_frequency_std"] = [_round(wave_frequency_std(col(n)[sl], dt, low))
+                                             for n in ("tau_x_n", "tau_y_n", "tau_n_nm")]
+        metrics["tau_std"] = [_round(float(np.nanstd(col(n)[sl]))) for n in ("tau_x_n", "tau_y_n", "tau_n_nm")]
+    mass = col("mrac_mass_surge_kg")
+    if np.any(np.isfinite(mass)):
+        true_mass = col("true_surge_mass_kg")
+        last = np.flatnonzero(np.isfinite(mass))[-1]
+        metrics["mrac_mass_surge_final_kg"] = _round(float(mass[last]), 1)
+        metrics["true_surge_mass_final_kg"] = _round(float(true_mass[last]), 1)
+        metrics["mrac_mass_surge_error_pct"] = _round(100.0 * (mass[last] - true_mass[last]) / true_mass[last], 3)
+    summary["metrics"] = metrics
+    return summary
+
+
+def _dominant_by_sea_state(result: RunResult, weights: np.ndarray, t: np.ndarray) -> list[dict[str, Any]]:
+    """For each sea state: the model that dominates at its end and when it first took over."""
+    out = []
+    states = result.scenario.sea_states
+    for i, state in enumerate(states):
+        end = states[i + 1].t_s if i + 1 < len(states) else float(t[-1]) + 1e-9
+        mask = (t >= state.t_s) & (t < end) & np.all(np.isfinite(weights), axis=1)
+        if not np.any(mask):
+            continue
+        idx = np.flatnonzero(mask)
+        best = int(np.argmax(weights[idx[-1]]))
+        dominant = np.argmax(weights[idx], axis=1) == best
+        # first time from which the final model stays dominant until the end of the sea state
+        not_dom = np.flatnonzero(~dominant)
+        since = t[idx[0]] if not_dom.size == 0 else (t[idx[not_dom[-1] + 1]] if not_dom[-1] + 1 < idx.size else None)
+        out.append({"from_s": state.t_s, "omega_peak_rad_s": getattr(state, "omega_peak_rad_s", None),
+                    "dominant_model_rad_s": result.omegas_rad_s[best],
+                    "dominant_from_s": None if since is None else round(float(since), 2),
+                    "switch_time_s": None if since is None else round(float(since) - state.t_s, 2)})
+    return out
+
+
+def write_summary(result: RunResult, path: Path) -> dict[str, Any]:
+    summary = summarise(result)
+    path.write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+    return summary
+
+
+def write_plots(result: RunResult, out_dir: Path) -> list[Path]:
+    """PNG plots an engineer expects (see the module docstring). Returns the written paths."""
+    import matplotlib  # noqa: PLC0415  (heavy; only when plots are asked for)
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt  # noqa: PLC0415
+
+    c = result.columns
+    d = c.data[: c.rows]
+    step = max(1, d.shape[0] // PLOT_POINTS)
+    d = d[::step]
+
+    def col(name: str) -> np.ndarray:
+        return d[:, c.index(name)]
+
+    t = col("t_s")
+    paths: list[Path] = []
+    title = f"{result.scenario.name} — {result.config.estimator.kind} + {result.config.control.kind}"
+
+    fig, axes = plt.subplots(3, 1, figsize=(11, 9), sharex=True)
+    for ax, (truth, total, meas, est, ref, label, scale) in zip(axes, (
+            ("north_m", "north_total_m", "meas_north_m", "est_north_m", "ref_north_m", "north [m]", 1.0),
+            ("east_m", "east_total_m", "meas_east_m", "est_east_m", "ref_east_m", "east [m]", 1.0),
+            ("heading_rad", "heading_total_rad", "meas_heading_rad", "est_heading_rad", "ref_heading_rad",
+             "heading [deg]", 180.0 / math.pi)), strict=True):
+        ax.plot(t, col(meas) * scale, color="0.75", lw=0.6, label="measurement (fused)")
+        ax.plot(t, col(total) * scale, color="tab:blue", lw=0.5, alpha=0.5, label="true total (LF + WF)")
+        ax.plot(t, col(truth) * scale, color="tab:blue", lw=1.4, label="true LF")
+        ax.plot(t, col(est) * scale, color="tab:orange", lw=1.0, ls="--", label="LF estimate")
+        ax.plot(t, col(ref) * scale, color="k", lw=0.8, ls=":", label="reference")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="upper left", fontsize=8, ncol=3)
+    axes[0].set_title(title)
+    axes[-1].set_xlabel("t [s]")
+    paths.append(_save(fig, out_dir / "pose.png"))
+
+    if result.omegas_rad_s:
+        first = c.index("weight_0")
+        fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
+        for i, omega in enumerate(result.omegas_rad_s):
+            ax1.plot(t, d[:, first + i], lw=1.2, label=f"{omega:.2f} rad/s")
+        ax1.set_ylabel("MMAE weight")
+        ax1.set_ylim(-0.02, 1.02)
+        ax1.legend(fontsize=8, ncol=4)
+        ax1.grid(alpha=0.3)
+        ax1.set_title(f"{title}: dynamic weights (cf. seed 000 Fig. 3)")
+        ax2.plot(t, col("omega_hat_rad_s"), label="ω̂ (weight-averaged)")
+        ax2.plot(t, col("omega_peak_rad_s"), "k--", lw=1, label="wave spectrum peak")
+        ax2.plot(t, col("motion_peak_rad_s"), "r:", lw=1.2, label="motion spectrum peak")
+        ax2.set_ylabel("ω [rad/s]")
+        ax2.set_xlabel("t [s]")
+        ax2.legend(fontsize=8)
+        ax2.grid(alpha=0.3)
+        paths.append(_save(fig, out_dir / "weights.png"))
+    elif np.any(np.isfinite(col("omega_hat_rad_s"))):
+        fig, ax = plt.subplots(figsize=(11, 4))
+        ax.plot(t, col("omega_hat_rad_s"), label="ω̂")
+        ax.plot(t, col("omega_peak_rad_s"), "k--", label="wave spectrum peak")
+        ax.plot(t, col("motion_peak_rad_s"), "r:", label="motion spectrum peak")
+        ax.set_ylabel("ω [rad/s]")
+        ax.set_xlabel("t [s]")
+        ax.legend()
+        ax.grid(alpha=0.3)
+        ax.set_title(f"{title}: peak frequency estimate")
+        paths.append(_save(fig, out_dir / "omega.png"))
+
+    fig, axes = plt.subplots(3, 1, figsize=(11, 8), sharex=True)
+    for ax, (cmd, act, label) in zip(axes, (("tau_x_n", "tau_act_x_n", "X [N]"), ("tau_y_n", "tau_act_y_n", "Y [N]"),
+                                            ("tau_n_nm", "tau_act_n_nm", "N [N·m]")), strict=True):
+        ax.plot(t, col(cmd), lw=0.8, label="commanded")
+        ax.plot(t, col(act), lw=0.8, alpha=0.8, label="delivered")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8)
+    axes[0].set_title(f"{title}: generalized force")
+    axes[-1].set_xlabel("t [s]")
+    paths.append(_save(fig, out_dir / "forces.png"))
+
+    thrust_cols = [n for n in c.names if n.startswith("thrust_")]
+    if thrust_cols:
+        fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
+        for name in thrust_cols:
+            ax1.plot(t, col(name), lw=0.8, label=name[len("thrust_"):-2])
+        for name in (n for n in c.names if n.startswith("azimuth_")):
+            ax2.plot(t, np.degrees(col(name)), lw=0.8, label=name[len("azimuth_"):-4])
+        ax1.set_ylabel("thrust command [N]")
+        ax2.set_ylabel("azimuth / rudder [deg]")
+        ax2.set_xlabel("t [s]")
+        ax1.legend(fontsize=8, ncol=3)
+        ax1.grid(alpha=0.3)
+        ax2.grid(alpha=0.3)
+        ax1.set_title(f"{title}: thruster usage")
+        paths.append(_save(fig, out_dir / "thrusters.png"))
+
+    if np.any(np.isfinite(col("mrac_mass_surge_kg"))):
+        fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
+        ax1.plot(t, col("mrac_mass_surge_kg"), label="MRAC surge mass estimate â2")
+        ax1.plot(t, col("true_surge_mass_kg"), "k--", label="true surge mass (m + added)")
+        ax1.set_ylabel("mass [kg]")
+        ax1.legend(fontsize=8)
+        ax1.grid(alpha=0.3)
+        ax1.set_title(f"{title}: MRAC parameter estimates (cf. seed 003 Fig. 11)")
+        ax2.plot(t, col("mrac_damping_surge_nspm"), label="surge damping estimate â1")
+        ax2.set_ylabel("damping [N·s/m]")
+        ax2.set_xlabel("t [s]")
+        ax2.grid(alpha=0.3)
+        paths.append(_save(fig, out_dir / "mrac.png"))
+    return paths
+
+
+def _save(fig: Any, path: Path) -> Path:
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    import matplotlib.pyplot as plt  # noqa: PLC0415
+
+    plt.close(fig)
+    return path

@@ -1,0 +1,170 @@
+"""Sensor samples → the bytes a real device sends, per protocol (pure: no I/O, no clock).
+
+One encoder per sensor, shared by the real-time emulator's links and the lockstep simulation, so
+what the controller decodes in a lockstep run is byte for byte what the emulator would put on the
+wire:
+
+* NMEA 0183 (:class:`NmeaSensorEncoder`): a GNSS sends GGA + GST (or the configured sentences among
+  GGA, GNS, RMC, GST), a gyrocompass THS + ROT (or HDT, THS, ROT); an invalid sample is GGA quality 0
+  (+ RMC status V when RMC is sent) or THS mode V (+ ROT status V). HDT has no validity field, so an
+  HDT-only gyro sends a THS V for an invalid sample.
+* NMEA 2000 (:class:`N2kSensorEncoder`): a GNSS sends PGN 129029 (fast packet), a gyro 127250 (true)
+  + 127251; an invalid sample is 129029 with method "no GNSS" or 127250 with the heading "not
+  available". GST statistics have no PGN here and are counted as not carried.
+* MAVLink 2 (:class:`MavlinkSensorEncoder`): a GNSS sends GPS_RAW_INT, a gyro ATTITUDE (yaw and yaw
+  rate in one message); an invalid sample is GPS_RAW_INT fix_type 0 or ATTITUDE without values.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Sequence
+
+from interfaces.mavlink.codec import MavlinkEncoder
+from interfaces.messages import Attitude, Heading, PositionErrorStats, PositionFix, RateOfTurn, SensorMessage
+from interfaces.nmea0183 import (
+    encode_gga,
+    encode_gga_no_fix,
+    encode_gns,
+    encode_gst,
+    encode_hdt,
+    encode_rmc,
+    encode_rmc_no_fix,
+    encode_rot,
+    encode_ths,
+)
+from interfaces.nmea2000.codec import N2kEncoder
+from sim_plant.sensors import InvalidFix
+
+Message = SensorMessage | InvalidFix
+
+POSITION_SENTENCES = ("GGA", "GNS", "RMC", "GST")
+HEADING_SENTENCES = ("HDT", "THS", "ROT")
+DEFAULT_POSITION_SENTENCES = ("GGA", "GST")
+DEFAULT_HEADING_SENTENCES = ("THS", "ROT")
+DATE_DDMMYY = "010126"  # RMC needs a date; the plant has none (1 January 2026)
+DATE_DAYS_SINCE_1970 = 20454  # the same date for PGN 129029
+
+
+class NmeaSensorEncoder:
+    """NMEA 0183 sentences of one sensor.
+
+    Parameters
+    ----------
+    kind : {"gnss", "gyro"}
+    talker : str or None
+        Talker ID (default GP for a GNSS, HE for a gyrocompass).
+    sentences : sequence of str, optional
+        Sentence types to send (defaults above).
+    """
+
+    def __init__(self, kind: str, talker: str | None = None, sentences: Sequence[str] = ()) -> None:
+        gnss = kind == "gnss"
+        self.talker = talker or ("GP" if gnss else "HE")
+        self.gns_talker = talker or "GN"  # GNS is a multi-constellation sentence
+        self.sentences = tuple(sentences) or (DEFAULT_POSITION_SENTENCES if gnss else DEFAULT_HEADING_SENTENCES)
+        self.counters: Counter[str] = Counter()
+
+    def encode(self, messages: Sequence[Message]) -> list[bytes]:
+        """The sentences (with checksum and CR LF) of one sample group."""
+        talker, wanted = self.talker, self.sentences
+        out: list[bytes] = []
+        for m in messages:
+            if isinstance(m, PositionFix):
+                if "GGA" in wanted:
+                    out.append(encode_gga(m, talker))
+                if "GNS" in wanted:
+                    out.append(encode_gns(m, self.gns_talker))
+                if "RMC" in wanted:
+                    out.append(encode_rmc(m, talker=talker, date_ddmmyy=DATE_DDMMYY))
+            elif isinstance(m, PositionErrorStats):
+                if "GST" in wanted:
+                    out.append(encode_gst(m, talker))
+            elif isinstance(m, Heading):
+                if "THS" in wanted:
+                    out.append(encode_ths(m, talker))
+                if "HDT" in wanted:
+                    out.append(encode_hdt(m, talker))
+            elif isinstance(m, RateOfTurn):
+                if "ROT" in wanted:
+                    out.append(encode_rot(m, talker))
+            elif isinstance(m, InvalidFix):
+                out.extend(self._invalid(m))
+        return out
+
+    def _invalid(self, fix: InvalidFix) -> list[bytes]:
+        talker, wanted = self.talker, self.sentences
+        if fix.kind == "position":
+            # GNS has no "no fix" form among our encoders: a receiver configured for GNS says it in GGA.
+            out = [encode_gga_no_fix(talker, fix.utc_time_s)]
+            if "RMC" in wanted:
+                out.append(encode_rmc_no_fix(talker, fix.utc_time_s, DATE_DDMMYY))
+            return out
+        out = []
+        if "THS" in wanted or "HDT" not in wanted:  # HDT has no validity field: say it with THS V
+            out.append(encode_ths(Heading(fix.heading_rad or 0.0), talker, mode="V"))
+        if "ROT" in wanted:
+            out.append(encode_rot(RateOfTurn(0.0), talker, valid=False))
+        return out
+
+
+class N2kSensorEncoder:
+    """NMEA 2000 frames ``(can_id, data)`` of one sensor at its source address."""
+
+    def __init__(self, source_address: int) -> None:
+        self.encoder = N2kEncoder(source_address)
+        self.source_address = source_address
+        self.sid = 0
+        self.counters: Counter[str] = Counter()
+
+    def encode(self, messages: Sequence[Message]) -> list[tuple[int, bytes]]:
+        """The CAN frames of one sample group (one sequence id per group)."""
+        encoder = self.encoder
+        sid = self.sid
+        self.sid = (sid + 1) % 250  # 0..250; 251+ are "not available"/reserved
+        frames: list[tuple[int, bytes]] = []
+        for m in messages:
+            if isinstance(m, PositionFix):
+                frames += encoder.gnss_position(m, date_days=DATE_DAYS_SINCE_1970, sid=sid)
+            elif isinstance(m, Heading):
+                frames += encoder.heading(m, sid=sid)
+            elif isinstance(m, RateOfTurn):
+                frames += encoder.rate_of_turn(m, sid=sid)
+            elif isinstance(m, InvalidFix):
+                if m.kind == "position":
+                    frames += encoder.gnss_position(None, date_days=DATE_DAYS_SINCE_1970, sid=sid)
+                else:
+                    frames += encoder.heading(None, sid=sid)
+            else:  # GST statistics have no PGN here
+                self.counters["not_carried"] += 1
+        return frames
+
+
+class MavlinkSensorEncoder:
+    """MAVLink 2 packets of one sensor, as a boat autopilot of ``system_id`` sends them."""
+
+    def __init__(self, system_id: int = 1, component_id: int = 1, signing_key: bytes | None = None) -> None:
+        self.encoder = MavlinkEncoder(system_id, component_id, signing_key=signing_key)
+        self.counters: Counter[str] = Counter()
+
+    def encode(self, t_s: float, messages: Sequence[Message]) -> list[bytes]:
+        """The packets of one sample group (a heading and its rate go in one ATTITUDE)."""
+        encoder = self.encoder
+        boot_ms = int(t_s * 1000.0) % (1 << 32)
+        heading = next((m for m in messages if isinstance(m, Heading)), None)
+        rate = next((m for m in messages if isinstance(m, RateOfTurn)), None)
+        out: list[bytes] = []
+        for m in messages:
+            if isinstance(m, PositionFix):
+                out.append(encoder.gps_raw_int(m))
+            elif isinstance(m, InvalidFix):
+                if m.kind == "position":
+                    out.append(encoder.gps_raw_int(None, fix_type=0))
+                else:
+                    out.append(encoder.attitude(None, time_boot_ms=boot_ms))
+            elif isinstance(m, PositionErrorStats):
+                self.counters["not_carried"] += 1
+        if heading is not None or rate is not None:
+            yaw = None if heading is None else heading.heading_rad
+            out.append(encoder.attitude(Attitude(None, None, yaw), rate=rate, time_boot_ms=boot_ms))
+        return out
