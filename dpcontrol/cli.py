@@ -1,12 +1,186 @@
-"""``dpcontrol`` command line (composition layer)."""
+"""``dpcontrol`` command line (composition layer): run, check-config, monitor, bench, decode, replay, log.
+
+Exit codes: 0 success; 1 runtime failure; 2 invalid usage or configuration (the message names the
+file, the key path and what was expected).
+"""
 
 from __future__ import annotations
 
+import argparse
+import json
+import logging
 import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from dpcontrol.models.schema import ConfigError
 
 
-def main(argv: list[str] | None = None) -> int:
+def _configure_logging(verbose: bool) -> None:
+    logging.basicConfig(level=logging.DEBUG if verbose else logging.INFO,
+                        format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from dpcontrol.runtime.config import load_config  # noqa: PLC0415
+    from dpcontrol.runtime.daemon import Daemon  # noqa: PLC0415
+
+    _configure_logging(args.verbose)
+    try:
+        config = load_config(args.config)
+    except ConfigError as error:
+        print(f"dpcontrol: invalid configuration: {error}", file=sys.stderr)
+        return 2
+    daemon = Daemon(config)
+    code = daemon.run(duration_s=args.duration)
+    if args.stats_out:
+        stats = daemon.stats.summary()
+        stats["resumed_from_state"] = daemon.resumed_from_state
+        stats["state"] = daemon.state_detail
+        Path(args.stats_out).write_text(json.dumps(stats, indent=2) + "\n", encoding="utf-8")
+    return code
+
+
+def _cmd_check_config(args: argparse.Namespace) -> int:
+    from dpcontrol.runtime.config import load_config  # noqa: PLC0415
+
+    try:
+        config = load_config(args.file)
+    except ConfigError as error:
+        print(f"dpcontrol: invalid configuration: {error}", file=sys.stderr)
+        return 2
+    sensors = ", ".join(f"{s.name} ({s.kind.value})" for s in config.sensors)
+    print(f"{args.file}: OK — vessel {config.vessel.name} as '{config.vessel_id}', {config.rate_hz:g} Hz, "
+          f"estimator {config.estimator.kind}, control {config.control.kind}, "
+          f"{len(config.vessel.thrusters)} thrusters, sensors: {sensors}")
+    return 0
+
+
+def _cmd_monitor(args: argparse.Namespace) -> int:
+    from dpcontrol.monitor import run_from_args  # noqa: PLC0415
+
+    return run_from_args(args)
+
+
+def _cmd_decode(args: argparse.Namespace) -> int:
+    from interfaces.logs import LOG_DECODERS, decode_log, to_json_line  # noqa: PLC0415
+
+    if args.protocol not in LOG_DECODERS:
+        print(f"dpcontrol decode: unknown protocol {args.protocol!r} (one of {', '.join(LOG_DECODERS)})",
+              file=sys.stderr)
+        return 2
+    try:
+        stats: dict[str, int] = {}
+        out = sys.stdout
+        for record in decode_log(args.protocol, args.file, stats):
+            out.write(to_json_line(record) + "\n")
+    except BrokenPipeError:  # e.g. piped into head: not an error
+        sys.stderr.close()
+        return 0
+    except OSError as error:
+        print(f"dpcontrol decode: {error}", file=sys.stderr)
+        return 1
+    if args.stats:
+        print(json.dumps(stats, sort_keys=True), file=sys.stderr)
+    return 0
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    from dpcontrol.bench import run_bench  # noqa: PLC0415
+
+    result = run_bench(iterations=args.iterations)
+    if args.json:
+        print(json.dumps(result, indent=2))
+    else:
+        from dpcontrol.bench import format_bench  # noqa: PLC0415
+
+        print(format_bench(result))
+    return 0
+
+
+def _cmd_replay(args: argparse.Namespace) -> int:
+    from dpcontrol.replay import replay  # noqa: PLC0415
+
+    _configure_logging(False)
+    try:
+        out_dir = Path(args.out) if args.out else None
+        report = replay(Path(args.log), Path(args.config), out_dir, plots=not args.no_plots)
+    except ConfigError as error:
+        print(f"dpcontrol replay: invalid configuration: {error}", file=sys.stderr)
+        return 2
+    except (OSError, ValueError) as error:
+        print(f"dpcontrol replay: {error}", file=sys.stderr)
+        return 1
+    print(json.dumps(report, indent=2))
+    return 0 if report.get("identical", True) or not report.get("same_config") else 1
+
+
+def _cmd_log_export(args: argparse.Namespace) -> int:
+    from dpcontrol.logtools import export_csv  # noqa: PLC0415
+
+    try:
+        paths = export_csv(args.log, args.csv)
+    except (OSError, ValueError) as error:
+        print(f"dpcontrol log export: {error}", file=sys.stderr)
+        return 1
+    for path in paths:
+        print(path)
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="dpcontrol", description="Dynamic positioning controller service.")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("run", help="run the controller daemon (systemd Type=notify)")
+    p.add_argument("--config", required=True, help="vessel configuration (YAML)")
+    p.add_argument("--duration", type=float, default=None, help="stop after this many seconds (tests, benches)")
+    p.add_argument("--stats-out", default=None, help="write the loop timing statistics (JSON) here at exit")
+    p.add_argument("-v", "--verbose", action="store_true")
+    p.set_defaults(func=_cmd_run)
+
+    p = sub.add_parser("check-config", help="validate a configuration file")
+    p.add_argument("file")
+    p.set_defaults(func=_cmd_check_config)
+
+    from dpcontrol.monitor import add_arguments  # noqa: PLC0415
+
+    p = sub.add_parser("monitor", help="live view of a running controller over zenoh")
+    add_arguments(p)
+    p.set_defaults(func=_cmd_monitor)
+
+    p = sub.add_parser("bench", help="control-cycle latency benchmark")
+    p.add_argument("--json", action="store_true")
+    p.add_argument("--iterations", type=int, default=3000)
+    p.set_defaults(func=_cmd_bench)
+
+    p = sub.add_parser("decode", help="decode a captured log to JSON lines")
+    p.add_argument("protocol", help="nmea0183 (text) | nmea2000 (candump) | mavlink (tlog)")
+    p.add_argument("file")
+    p.add_argument("--stats", action="store_true", help="print counters to stderr at the end")
+    p.set_defaults(func=_cmd_decode)
+
+    p = sub.add_parser("replay", help="replay a recording through the control step and compare")
+    p.add_argument("log", help="recording (MCAP file or directory)")
+    p.add_argument("--config", required=True, help="configuration to replay with")
+    p.add_argument("--out", default=None, help="directory for the comparison (CSV, plots)")
+    p.add_argument("--no-plots", action="store_true")
+    p.set_defaults(func=_cmd_replay)
+
+    p = sub.add_parser("log", help="recording tools")
+    log_sub = p.add_subparsers(dest="log_command", required=True)
+    q = log_sub.add_parser("export", help="export a recording to CSV files")
+    q.add_argument("log")
+    q.add_argument("--csv", required=True, help="output directory")
+    q.set_defaults(func=_cmd_log_export)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``dpcontrol`` console script."""
-    del argv
-    print("dpcontrol: not yet implemented", file=sys.stderr)
-    return 2
+    args = build_parser().parse_args(argv)
+    return int(args.func(args))
+
+
+if __name__ == "__main__":
+    sys.exit(main())

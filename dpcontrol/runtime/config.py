@@ -24,6 +24,7 @@ from dpcontrol.guidance import ReferenceModelConfig, reference_config_from_mappi
 from dpcontrol.models.schema import ConfigError, Section, parse_list
 from dpcontrol.models.vessels import VesselData, vessel_from_config
 from dpcontrol.runtime.hub import HubConfig, SensorConfig, SensorKind
+from interfaces.zenoh.config import ZenohConfig
 
 PROTOCOLS = ("nmea0183", "nmea2000", "mavlink")
 MODES = ("standby", "auto_heading", "auto_position")
@@ -100,15 +101,6 @@ class ThrusterMonitorSettings:
 
 
 @dataclass(frozen=True)
-class ZenohSettings:
-    """Zenoh session: peer mode, explicit endpoints, multicast scouting off (DESIGN §5)."""
-
-    mode: str = "peer"
-    listen: tuple[str, ...] = ()
-    connect: tuple[str, ...] = ()
-
-
-@dataclass(frozen=True)
 class RecorderSettings:
     """Black-box recorder (issue 9)."""
 
@@ -148,7 +140,7 @@ class DaemonConfig:
     hub: HubConfig
     fallback: FallbackSettings
     thruster_monitor: ThrusterMonitorSettings
-    zenoh: ZenohSettings
+    zenoh: ZenohConfig
     recorder: RecorderSettings
     state: StateSettings
     source_text: str = ""
@@ -276,12 +268,16 @@ def _parse_estimator(section: Section, vessel: VesselData, rate_hz: float) -> Es
     if kind == "mmae":
         omegas = tuple(float(v) for v in Section.of(options, section.path).vector(
             "omegas_rad_s", None, [0.3, 0.45, 0.6, 0.75, 0.9, 1.05, 1.2, 1.35]))
-    elif kind == "kf":
-        omegas = (float(options.get("omega_rad_s", 0.8)),)
-    elif kind == "rpem":
-        omegas = (float(options.get("omega0_rad_s", 0.8)),)
+    elif kind in ("kf", "rpem"):
+        name = "omega_rad_s" if kind == "kf" else "omega0_rad_s"
+        omegas = (Section.of(options, section.path).number(name, 0.8),)
     else:
         omegas = ()
+    key = {"mmae": "omegas_rad_s", "kf": "omega_rad_s", "rpem": "omega0_rad_s"}.get(kind)
+    for i, omega in enumerate(omegas):
+        if not 0.05 <= omega <= 5.0:
+            where = f"{section.path}.{key}" + (f"[{i}]" if kind == "mmae" else "")
+            raise ConfigError(where, "a wave peak frequency in [0.05, 5] rad/s", omega)
     zeta = options.get("zeta", 0.1)
     extra = {k: v for k, v in options.items() if k not in ("omegas_rad_s", "omega_rad_s", "omega0_rad_s", "zeta")}
     wave_filter = WaveFilterConfig.from_options(
@@ -385,18 +381,7 @@ def _parse(mapping: object, text: str, file: str | None) -> DaemonConfig:
     )
     tm.finish()
 
-    zs = root.section("zenoh")
-    zenoh_endpoints: dict[str, tuple[str, ...]] = {}
-    for key in ("listen", "connect"):
-        endpoints = []
-        for where, value in zs.items(key):
-            if not isinstance(value, str) or not re.fullmatch(r"(tcp|udp|tls|quic|unixsock-stream)/.+", value):
-                raise ConfigError(where, "a zenoh endpoint like tcp/127.0.0.1:7447", value)
-            endpoints.append(value)
-        zenoh_endpoints[key] = tuple(endpoints)
-    zenoh = ZenohSettings(zs.string("mode", "peer", choices=("peer", "client")), zenoh_endpoints["listen"],
-                          zenoh_endpoints["connect"])
-    zs.finish()
+    zenoh = ZenohConfig.from_mapping(root.raw("zenoh", None), "zenoh")
 
     rs = root.section("recorder")
     recorder = RecorderSettings(

@@ -144,12 +144,16 @@ class MavlinkUdpReader:
         Also deliver every datagram as :class:`RawPacket`.
     poll_s : float
         Longest blocking read [s] (bounds :meth:`close` and the link-check period).
+    namer : callable, optional
+        ``(system, component, message_name) -> name``, consulted after ``source_names`` (lets a router
+        that only knows system IDs and message names name every sender).
     """
 
     def __init__(self, sink: Callable[[MavEvent], Any], *, bind: Address = ("127.0.0.1", 0),
                  clock: Clock = time.monotonic, unix_clock: Clock = time.time, signing_key: bytes | None = None,
                  heartbeat_timeout_s: float = 5.0, source_names: Mapping[tuple[Any, ...], str] | None = None,
-                 deliver_raw: bool = False, poll_s: float = 0.1) -> None:
+                 deliver_raw: bool = False, poll_s: float = 0.1,
+                 namer: Callable[[int, int, str], str] | None = None) -> None:
         if not poll_s > 0.0:
             raise ValueError("poll_s must be > 0")
         self.sink = sink
@@ -159,6 +163,7 @@ class MavlinkUdpReader:
         self.decoder = MavlinkDecoder(signing_key, signing_time_s=unix_clock())
         self.counters: Counter[str] = Counter()
         self._names = dict(source_names or {})
+        self._namer = namer
         self._bind = bind
         self._sock = self._open_socket(bind)
         self.address: Address = self._sock.getsockname()[:2]
@@ -239,6 +244,8 @@ class MavlinkUdpReader:
             name = names.get((system_id, component_id, msg_name)) or names.get((system_id, component_id))
             if name is not None:
                 return name
+        if self._namer is not None:
+            return self._namer(system_id, component_id, msg_name)
         return mavlink_source_name(system_id, component_id)
 
     def _run(self) -> None:

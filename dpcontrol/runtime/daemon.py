@@ -1,0 +1,549 @@
+"""``dpcontrol run``: the control loop on a monotonic clock, with real transports and Zenoh.
+
+Threads: each transport has its reader thread (interfaces/…/transport.py) that decodes and routes
+messages into :class:`InputPump`'s queue; Zenoh callbacks fill the setpoint inbox and the
+feedback slot. The loop thread (the main thread) owns everything else: at every deadline it drains
+the inputs, runs :meth:`DpController.step` (the same step the lockstep simulation runs), publishes
+the command first, then estimate, MMAE, control and status, records, persists its state and — only
+then, from this healthy loop — sends ``WATCHDOG=1`` to systemd (DESIGN.md §5: a side thread pinging
+the watchdog would keep a hung loop "alive").
+
+Deadline scheduling: deadlines are ``t0 + k·T``; a late cycle runs at once, cycles that are missed
+entirely are counted and skipped (the next deadline is the next one in the future), so the loop
+never drifts and never bursts.
+
+SIGTERM/SIGINT: the loop commands zero thrust (standby) as its last command, publishes a final
+status, saves its state, closes the recorder and exits 0.
+"""
+
+from __future__ import annotations
+
+import collections
+import logging
+import math
+import re
+import signal
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from dpcontrol.runtime.alarms import AlarmRegistry, Severity
+from dpcontrol.runtime.config import DaemonConfig, TransportConfig, config_as_json
+from dpcontrol.runtime.inputs import SensorRouter
+from dpcontrol.runtime.persist import BackgroundSaver, StateStore
+from dpcontrol.runtime.recorder import Recorder, default_topics
+from dpcontrol.runtime.step import DpController, Mode, StepOutput
+from dpcontrol.runtime.thrusters import ThrusterFeedback
+from interfaces.messages import LinkStatus, Measurement, RejectedInput
+from interfaces.systemd import SystemdNotifier
+from interfaces.zenoh import schemas
+from interfaces.zenoh.node import LatestSlot, ZenohNode
+
+log = logging.getLogger(__name__)
+
+TIMING_WINDOW = 2048
+ERROR_WINDOW_S = 10.0
+
+
+@dataclass
+class _TransportHealth:
+    """Decoded vs rejected inputs of one transport over a sliding window (error-rate alarm)."""
+
+    events: collections.deque[tuple[float, bool]] = field(default_factory=lambda: collections.deque(maxlen=4096))
+    rejected_total: int = 0
+    ok_total: int = 0
+
+    def add(self, t_s: float, ok: bool) -> None:
+        self.events.append((t_s, ok))
+        if ok:
+            self.ok_total += 1
+        else:
+            self.rejected_total += 1
+
+    def rate(self, t_s: float) -> tuple[float, int]:
+        events = self.events
+        while events and t_s - events[0][0] > ERROR_WINDOW_S:
+            events.popleft()
+        bad = sum(1 for _, ok in events if not ok)
+        return (bad / len(events) if events else 0.0), bad
+
+
+class InputPump:
+    """Starts the transport readers; collects routed measurements, rejects and link changes.
+
+    Everything arriving from reader threads goes through one deque (thread-safe appends); the loop
+    drains it once per cycle.
+    """
+
+    def __init__(self, config: DaemonConfig, clock: Callable[[], float], recorder: Recorder | None = None) -> None:
+        self.config = config
+        self.clock = clock
+        self.router = SensorRouter(config.routes, config.transports)
+        self.recorder = recorder
+        self._queue: collections.deque[Any] = collections.deque()
+        self._readers: list[Any] = []
+        self.health = {t.name: _TransportHealth() for t in config.transports}
+        self._mav_pattern = re.compile(r"^mav:(\d+)/(\d+)/(.*)$")
+        self._n2k_pattern = re.compile(r"^n2k:(\d+)$")
+
+    # ---------------------------------------------------------------- readers
+    def start(self) -> None:
+        for transport in self.config.transports:
+            try:
+                self._readers.append(self._start(transport))
+            except Exception as error:  # a missing device must not stop the controller (it reconnects)
+                log.error("transport %s could not start: %s", transport.name, error)
+                self._queue.append(LinkStatus(self.clock(), transport.name, False, f"start failed: {error}"))
+
+    def _start(self, transport: TransportConfig) -> Any:
+        name = transport.name
+        s = transport.settings
+        if transport.protocol == "nmea0183":
+            from interfaces.nmea0183.transport import SerialReader  # noqa: PLC0415
+
+            reader = SerialReader(s["port"], source=name, clock=self.clock, baudrate=s["baud"],
+                                  on_line=lambda line, n=name: self._nmea_line(n, line),
+                                  on_link=lambda status, n=name: self._queue.append(
+                                      LinkStatus(status.t_s, n, status.connected, status.detail)))
+            return reader.start()
+        if transport.protocol == "nmea2000":
+            from interfaces.nmea2000.transport import CanBusConfig, N2kCanReader  # noqa: PLC0415
+
+            channel = "" if s["channel"] is None else str(s["channel"])
+            bus = CanBusConfig(s["interface"], channel or "can0", dict(s.get("options") or {}))
+            return N2kCanReader(bus, lambda event, n=name: self._n2k_event(n, event), clock=self.clock,
+                                deliver_raw=self.recorder is not None).start()
+        from interfaces.mavlink.codec import parse_signing_key  # noqa: PLC0415
+        from interfaces.mavlink.transport import MavlinkUdpReader  # noqa: PLC0415
+
+        match = re.fullmatch(r"udpin:([^:]+):(\d+)", s["url"])
+        if match is None:
+            raise ValueError(f"mavlink url {s['url']!r}: only udpin:HOST:PORT is supported")
+        key = parse_signing_key(s["signing_key_hex"]) if s.get("signing_key_hex") else None
+        return MavlinkUdpReader(lambda event, n=name: self._mav_event(n, event),
+                                bind=(match.group(1), int(match.group(2))), clock=self.clock, signing_key=key,
+                                heartbeat_timeout_s=s["heartbeat_timeout_s"], deliver_raw=self.recorder is not None,
+                                namer=lambda sys_id, comp, msg: f"mav:{sys_id}/{comp}/{msg}").start()
+
+    def _nmea_line(self, transport: str, line: Any) -> None:
+        frame = line.frame
+        ok = frame.rejected is None
+        self._queue.append(("health", transport, line.t_s, ok))
+        if self.recorder is not None:
+            self.recorder.record_raw(transport, line.t_s, frame.raw,
+                                     rejected=None if ok else frame.rejected.reason, sentence=frame.sentence or None)
+        for message in frame.messages:
+            sensor = self.router.nmea0183(transport, frame.sentence, message)
+            if sensor is not None:
+                self._queue.append(Measurement(line.t_s, sensor, message))
+
+    def _n2k_event(self, transport: str, event: Any) -> None:
+        if isinstance(event, Measurement):
+            match = self._n2k_pattern.match(event.source)
+            self._queue.append(("health", transport, event.t_s, True))
+            if match is not None:
+                sensor = self.router.nmea2000(transport, int(match.group(1)), event.message)
+                if sensor is not None:
+                    self._queue.append(Measurement(event.t_s, sensor, event.message))
+        elif isinstance(event, RejectedInput):
+            self._queue.append(("health", transport, event.t_s, False))
+            if self.recorder is not None:
+                self.recorder.record_raw(transport, event.t_s, event.rejected.raw, rejected=event.rejected.reason)
+        elif isinstance(event, LinkStatus):
+            self._queue.append(LinkStatus(event.t_s, transport, event.connected, event.detail))
+        elif self.recorder is not None:  # RawFrame
+            self.recorder.record_raw(transport, event.t_s, event.data, can_id=event.can_id)
+
+    def _mav_event(self, transport: str, event: Any) -> None:
+        if isinstance(event, Measurement):
+            match = self._mav_pattern.match(event.source)
+            self._queue.append(("health", transport, event.t_s, True))
+            if match is not None:
+                sensor = self.router.mavlink(transport, int(match.group(1)), match.group(3), event.message)
+                if sensor is not None:
+                    self._queue.append(Measurement(event.t_s, sensor, event.message))
+        elif isinstance(event, RejectedInput):
+            self._queue.append(("health", transport, event.t_s, False))
+            if self.recorder is not None:
+                self.recorder.record_raw(transport, event.t_s, event.rejected.raw, rejected=event.rejected.reason)
+        elif isinstance(event, LinkStatus):
+            self._queue.append(LinkStatus(event.t_s, transport, event.connected, event.detail))
+        elif self.recorder is not None:  # RawPacket
+            self.recorder.record_raw(transport, event.t_s, event.data)
+
+    # ---------------------------------------------------------------- the loop side
+    def drain(self, measurements: list[Measurement], links: list[LinkStatus]) -> None:
+        """Move everything received since the last call into the two lists (in arrival order)."""
+        queue = self._queue
+        health = self.health
+        while queue:
+            item = queue.popleft()
+            if isinstance(item, Measurement):
+                measurements.append(item)
+            elif isinstance(item, LinkStatus):
+                links.append(item)
+            else:
+                _, transport, t_s, ok = item
+                health[transport].add(t_s, ok)
+
+    def close(self) -> None:
+        for reader in self._readers:
+            try:
+                reader.close()
+            except Exception:  # closing must go on for the others
+                log.exception("closing a transport reader failed")
+
+
+@dataclass
+class LoopStats:
+    """Cycle timing of the loop (µs), measured on the loop's monotonic clock."""
+
+    period_s: float
+    durations_us: np.ndarray = field(default_factory=lambda: np.zeros(TIMING_WINDOW))
+    publish_us: np.ndarray = field(default_factory=lambda: np.zeros(TIMING_WINDOW))
+    jitter_us: np.ndarray = field(default_factory=lambda: np.zeros(TIMING_WINDOW))
+    count: int = 0
+    missed_deadlines: int = 0
+    step_errors: int = 0
+
+    def add(self, duration_us: float, publish_us: float, jitter_us: float) -> None:
+        i = self.count % TIMING_WINDOW
+        self.durations_us[i] = duration_us
+        self.publish_us[i] = publish_us
+        self.jitter_us[i] = jitter_us
+        self.count += 1
+
+    def summary(self) -> dict[str, Any]:
+        n = min(self.count, TIMING_WINDOW)
+        if n == 0:
+            return {"cycles": 0, "missed_deadlines": self.missed_deadlines}
+
+        def stats(values: np.ndarray) -> dict[str, float]:
+            v = values[:n]
+            return {"median": round(float(np.median(v)), 1), "p99": round(float(np.percentile(v, 99)), 1),
+                    "max": round(float(np.max(v)), 1)}
+
+        return {"cycles": self.count, "window": n, "missed_deadlines": self.missed_deadlines,
+                "step_errors": self.step_errors, "cycle_duration_us": stats(self.durations_us),
+                "start_to_command_published_us": stats(self.publish_us),
+                "period_jitter_us": stats(np.abs(self.jitter_us))}
+
+
+class Daemon:
+    """The ``dpcontrol run`` service.
+
+    Parameters
+    ----------
+    config : DaemonConfig
+    clock : callable
+        Monotonic clock [s].
+    wall_clock : callable
+        Wall clock [s] (persisted-state age across restarts).
+    notifier : SystemdNotifier, optional
+    """
+
+    def __init__(self, config: DaemonConfig, *, clock: Callable[[], float] = time.monotonic,
+                 wall_clock: Callable[[], float] = time.time, notifier: SystemdNotifier | None = None) -> None:
+        self.config = config
+        self.clock = clock
+        self.wall_clock = wall_clock
+        self.notifier = notifier or SystemdNotifier()
+        self.alarms = AlarmRegistry()
+        self.controller = DpController(config, self.alarms)
+        self.stats = LoopStats(config.sample_time_s)
+        self._stop = threading.Event()
+        self.recorder: Recorder | None = None
+        self.node: ZenohNode | None = None
+        self.pump: InputPump | None = None
+        self.saver: BackgroundSaver | None = None
+        self.store: StateStore | None = None
+        self._publishers: dict[str, Any] = {}
+        self._names = [t.name for t in config.vessel.thrusters]
+        self._seq = 0
+        self._last_state_save = -math.inf
+        self._last_stats_t = -math.inf
+        self._cycle_summary: dict[str, Any] = {}
+        self.resumed_from_state = False
+        self.state_detail = ""
+        self._setpoints_rejected = 0
+        self._setpoint_rejected_t = -math.inf
+
+    # ---------------------------------------------------------------- life cycle
+    def request_stop(self, *_: Any) -> None:
+        """Ask the loop to stop after the current cycle (signal handler)."""
+        self._stop.set()
+
+    def _open(self) -> None:
+        cfg = self.config
+        if cfg.recorder.path is not None:
+            self.recorder = Recorder(cfg.recorder, topics=default_topics([t.name for t in cfg.transports]),
+                                     config={"vessel_id": cfg.vessel_id, "config_sha256": cfg.config_hash,
+                                             "text": cfg.source_text},
+                                     on_error=lambda error: log.error("recorder: %s", error))
+        if cfg.state.path is not None:
+            self.store = StateStore(cfg.state.path, cfg.state.period_s, cfg.state.max_age_s,
+                                    config_hash=cfg.config_hash)
+            self.saver = BackgroundSaver(self.store, on_error=lambda error: log.error("state save: %s", error))
+            self._resume()
+        self.node = ZenohNode(cfg.zenoh, cfg.vessel_id, clock=self.clock)
+        node = self.node
+        for topic in ("command", "estimate", "mmae", "control", "status"):
+            self._publishers[topic] = node.publisher(topic)
+        self._setpoints = node.subscribe("setpoint")
+        self._feedback_slot: LatestSlot[Any] = LatestSlot()
+        import functools  # noqa: PLC0415
+
+        node.subscribe("feedback", self._feedback_slot,
+                       parse=functools.partial(schemas.parse_feedback, thruster_names=self._names))
+        config_json = config_as_json(cfg).encode("utf-8")
+        node.serve_config(lambda: config_json)
+        node.declare_alive("controller")
+        self.pump = InputPump(cfg, self.clock, self.recorder)
+        self.pump.start()
+
+    def _resume(self) -> None:
+        """Bumpless restart: resume from a recent persisted state, else start cold in standby."""
+        assert self.store is not None
+        result = self.store.check(self.wall_clock())
+        self.state_detail = f"{result.status.value}: {result.detail}".strip(": ")
+        if result.state is None:
+            log.info("cold start (persisted state %s)", self.state_detail)
+            return
+        try:
+            self.controller.load_state_dict(result.state, self.clock())
+            self.resumed_from_state = True
+            log.info("resumed from persisted state (age %.1f s, mode %s)", result.age_s or 0.0,
+                     self.controller.mode.value)
+        except (KeyError, ValueError, TypeError) as error:
+            self.state_detail = f"unusable: {error}"
+            log.warning("persisted state unusable, cold start: %s", error)
+            self.controller = DpController(self.config, self.alarms)
+
+    def run(self, duration_s: float | None = None, install_signals: bool = True) -> int:
+        """Run until SIGTERM/SIGINT (or ``duration_s``); returns the exit code (0 on a clean stop)."""
+        if install_signals:
+            signal.signal(signal.SIGTERM, self.request_stop)
+            signal.signal(signal.SIGINT, self.request_stop)
+        try:
+            self._open()
+        except Exception as error:
+            log.error("start-up failed: %s", error)
+            self._close()
+            return 1
+        period = self.config.sample_time_s
+        t0 = self.clock()
+        deadline = t0
+        end = None if duration_s is None else t0 + duration_s
+        ready_sent = False
+        measurements: list[Measurement] = []
+        links: list[LinkStatus] = []
+        consecutive_errors = 0
+        watchdog_interval = self.notifier.watchdog_interval_s()
+        while not self._stop.is_set():
+            now = self.clock()
+            if now < deadline and self._stop.wait(deadline - now):
+                break
+            start = self.clock()
+            if end is not None and start >= end:
+                break
+            jitter = start - deadline
+            measurements.clear()
+            links.clear()
+            try:
+                out, published = self._cycle(start, measurements, links)
+                consecutive_errors = 0
+            except Exception:
+                self.stats.step_errors += 1
+                consecutive_errors += 1
+                log.exception("control step failed (%d in a row)", consecutive_errors)
+                self.alarms.raise_(start, "controller.internal_error", Severity.CRITICAL,
+                                   "control step raised; commanding zero thrust")
+                self._publish_zero(start)
+                out, published = None, self.clock()
+            finish = self.clock()
+            self.stats.add((finish - start) * 1e6, (published - start) * 1e6, jitter * 1e6)
+            healthy = consecutive_errors < 3 and out is not None
+            if healthy:
+                if not ready_sent:
+                    self.notifier.ready()
+                    self.notifier.status("controlling")
+                    ready_sent = True
+                if watchdog_interval is not None:
+                    self.notifier.watchdog()
+            # Next deadline: the next multiple of the period in the future (missed ones counted).
+            deadline += period
+            behind = self.clock() - deadline
+            if behind > 0.0:
+                skipped = math.floor(behind / period) + 1
+                self.stats.missed_deadlines += skipped
+                deadline += skipped * period
+        self._shutdown()
+        return 0
+
+    # ---------------------------------------------------------------- one cycle
+    def _cycle(self, t_s: float, measurements: list[Measurement], links: list[LinkStatus]) -> tuple[StepOutput, float]:
+        assert self.pump is not None and self.node is not None
+        self.pump.drain(measurements, links)
+        for status in links:
+            for sensor in self.pump.router.sensors_on(status.source):
+                self.controller.hub.set_disconnected(sensor, not status.connected)
+            self.alarms.set(t_s, f"transport.{status.source}.link", not status.connected, Severity.WARNING,
+                            f"{status.source}: link lost ({status.detail})")
+        requests = [received.message for received in self._setpoints.sink.drain()]
+        rejected = self._setpoints.stats
+        if rejected.rejected != self._setpoints_rejected:
+            self._setpoints_rejected = rejected.rejected
+            self._setpoint_rejected_t = t_s
+            why = rejected.last_rejection
+            self.alarms.raise_(t_s, "operator.setpoint_rejected", Severity.INFO,
+                               f"setpoint rejected: {why.reason if why else '?'} {why.detail if why else ''}".strip())
+        elif t_s - self._setpoint_rejected_t > 10.0:
+            self.alarms.clear(t_s, "operator.setpoint_rejected")
+        feedback: list[ThrusterFeedback] = []
+        latest = self._feedback_slot.latest()
+        if latest is not None:
+            for item in latest.message.thrusters:
+                if item.thrust_n is not None and item.azimuth_rad is not None:
+                    feedback.append(ThrusterFeedback(item.name, item.thrust_n, item.azimuth_rad, item.ready,
+                                                     latest.rx_t_s))
+        out = self.controller.step(t_s, measurements, feedback, requests)
+        seq = self._seq
+        self._seq += 1
+        self._publishers["command"].put(schemas.command_payload(
+            t_s=t_s, seq=seq, mode=out.mode.value, names=self._names, thrust_n=out.thrust_n,
+            azimuth_rad=out.azimuth_rad, enabled=out.enabled))
+        published = self.clock()
+        self._publish_rest(t_s, seq, out)
+        self._error_rate_alarms(t_s)
+        self._record(t_s, out)
+        self._persist(t_s)
+        return out, published
+
+    def _publish_rest(self, t_s: float, seq: int, out: StepOutput) -> None:
+        estimate = out.estimate
+        pub = self._publishers
+        kind = self.config.estimator.kind
+        if estimate is not None:
+            pub["estimate"].put(schemas.estimate_payload(
+                t_s=t_s, seq=seq, estimator=kind, eta_n=estimate.eta_hat_n, nu_b=estimate.nu_hat_b,
+                bias=estimate.bias_hat_b, bias_frame="body", eta_wf_n=estimate.eta_wf_hat_n,
+                covariance_diag=estimate.covariance_diag))
+            if estimate.weights is not None:
+                pub["mmae"].put(schemas.mmae_payload(t_s=t_s, seq=seq, omegas_rad_s=estimate.omegas_rad_s,
+                                                     weights=estimate.weights,
+                                                     omega_hat_rad_s=estimate.omega_hat_rad_s))
+        mrac = out.mrac
+        reference = out.reference
+        pub["control"].put(schemas.control_payload(
+            t_s=t_s, seq=seq, controller=self.config.control.kind, tau_b=out.tau_b, setpoint_n=out.setpoint_n,
+            reference_n=None if reference is None else reference.eta_d_n, tau_achieved_b=out.tau_achieved_b,
+            shortfall_b=out.shortfall_b,
+            mrac_mass=None if mrac is None else [mrac.get("mass_surge_kg"), mrac.get("mass_sway_kg"),
+                                                 mrac.get("inertia_yaw_kgm2")],
+            mrac_damping=None if mrac is None else [mrac.get("damping_surge_nspm"), mrac.get("damping_sway_nspm"),
+                                                    mrac.get("damping_yaw_nmsprad")]))
+        pub["status"].put(self._status_payload(t_s, seq))
+
+    def _status_payload(self, t_s: float, seq: int) -> bytes:
+        if t_s - self._last_stats_t >= 1.0:
+            self._cycle_summary = self.stats.summary()
+            self._last_stats_t = t_s
+        durations = self._cycle_summary.get("cycle_duration_us", {})
+        sensors = [schemas.SensorHealth(s["name"], s["kind"], s["state"], s["age_s"], s["weight"], s["detail"])
+                   for s in self.controller.hub.sensor_status(t_s)]
+        alarms = [schemas.Alarm(a.code, a.severity.name.lower(), a.text, a.since_t_s, a.active)
+                  for a in self.alarms.listed(t_s)]
+        thrusters = [schemas.ThrusterAvailability(t["name"], t["available"], t["detail"])
+                     for t in self.controller.monitor.status()]
+        cycle = schemas.CycleTiming(self.config.sample_time_s, durations.get("median"), durations.get("p99"),
+                                    self.stats.missed_deadlines)
+        return schemas.status_payload(t_s=t_s, seq=seq, mode=self.controller.mode.value, sensors=sensors,
+                                      alarms=alarms, cycle=cycle, thrusters=thrusters)
+
+    def _error_rate_alarms(self, t_s: float) -> None:
+        assert self.pump is not None
+        limit = self.config.hub.error_rate_alarm
+        for name, health in self.pump.health.items():
+            rate, bad = health.rate(t_s)
+            self.alarms.set(t_s, f"transport.{name}.error_rate", rate > limit and bad >= 5, Severity.WARNING,
+                            f"{name}: {100 * rate:.0f} % of the inputs rejected in the last {ERROR_WINDOW_S:g} s")
+
+    def _record(self, t_s: float, out: StepOutput) -> None:
+        recorder = self.recorder
+        if recorder is None:
+            return
+        estimate = out.estimate
+        if estimate is not None:
+            recorder.record("estimate", t_s, {
+                "t_s": t_s, "eta_n": estimate.eta_hat_n.tolist(), "nu_b": estimate.nu_hat_b.tolist(),
+                "bias_b": estimate.bias_hat_b.tolist(), "eta_wf_n": estimate.eta_wf_hat_n.tolist(),
+                "covariance_diag": estimate.covariance_diag.tolist(), "measured": list(estimate.measured)})
+            if estimate.weights is not None:
+                recorder.record("mmae", t_s, {"t_s": t_s, "weights": estimate.weights.tolist(),
+                                              "omegas_rad_s": list(estimate.omegas_rad_s),
+                                              "omega_hat_rad_s": estimate.omega_hat_rad_s})
+        if out.reference is not None:
+            recorder.record("reference", t_s, {"t_s": t_s, "eta_d_n": out.reference.eta_d_n.tolist(),
+                                               "eta_dot_d_n": out.reference.eta_dot_d_n.tolist()})
+        recorder.record("control", t_s, {"t_s": t_s, "tau_b": out.tau_b.tolist(), "mrac": out.mrac,
+                                         "setpoint_n": out.setpoint_n.tolist()})
+        recorder.record("allocation", t_s, {"t_s": t_s, "tau_achieved_b": out.tau_achieved_b.tolist(),
+                                            "shortfall_b": out.shortfall_b.tolist()})
+        recorder.record("command", t_s, {"t_s": t_s, "mode": out.mode.value, "names": self._names,
+                                         "thrust_n": out.thrust_n.tolist(), "azimuth_rad": out.azimuth_rad.tolist(),
+                                         "enabled": out.enabled.tolist()})
+        for previous, new, reason in out.mode_changes:
+            recorder.record("mode", t_s, {"t_s": t_s, "from": previous, "to": new, "reason": reason})
+        for text in out.rejected_requests:
+            recorder.record("mode", t_s, {"t_s": t_s, "rejected_request": text})
+        for event in self.alarms.drain_events():
+            recorder.record("alarm", t_s, {"t_s": event.t_s, "code": event.code, "raised": event.raised,
+                                           "severity": event.severity.name.lower(), "text": event.text})
+        if not recorder.health.ok:
+            self.alarms.raise_(t_s, "recorder.error", Severity.WARNING,
+                               f"black-box recorder: {recorder.health.error}")
+        else:
+            self.alarms.clear(t_s, "recorder.error")
+
+    def _persist(self, t_s: float) -> None:
+        if self.saver is None or t_s - self._last_state_save < self.config.state.period_s:
+            return
+        self._last_state_save = t_s
+        self.saver.submit(self.wall_clock(), self.controller.state_dict(t_s))
+
+    # ---------------------------------------------------------------- shutdown
+    def _publish_zero(self, t_s: float) -> None:
+        pub = self._publishers.get("command")
+        if pub is None:
+            return
+        n = len(self._names)
+        self._seq += 1
+        pub.put(schemas.command_payload(t_s=t_s, seq=self._seq, mode=Mode.STANDBY.value, names=self._names,
+                                        thrust_n=np.zeros(n), azimuth_rad=self.controller.out.azimuth_rad,
+                                        enabled=[False] * n))
+
+    def _shutdown(self) -> None:
+        t_s = self.clock()
+        self.notifier.stopping()
+        self.controller.request_mode(Mode.STANDBY)
+        self.controller.mode = Mode.STANDBY
+        self._publish_zero(t_s)  # the last command: zero thrust
+        if "status" in self._publishers:
+            self._publishers["status"].put(self._status_payload(t_s, self._seq))
+        if self.saver is not None:
+            self.saver.submit(self.wall_clock(), self.controller.state_dict(t_s))
+        self._close()
+
+    def _close(self) -> None:
+        if self.pump is not None:
+            self.pump.close()
+        if self.saver is not None:
+            self.saver.close()
+        if self.node is not None:
+            self.node.close()
+        if self.recorder is not None:
+            self.recorder.close(5.0)

@@ -1,0 +1,122 @@
+"""Daemon configuration: the shipped examples validate, and every bad field is refused by name."""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import pytest
+import yaml
+
+from dpcontrol.cli import main
+from dpcontrol.models.schema import ConfigError
+from dpcontrol.runtime.config import load_config, parse_config
+
+ROOT = Path(__file__).resolve().parents[2]
+EXAMPLES = sorted((ROOT / "deploy" / "config").glob("*.yaml"))
+
+BASE = {
+    "vessel_id": "cs2",
+    "vessel": "cybership2",
+    "transports": [{"name": "serial", "protocol": "nmea0183", "port": "/dev/ttyUSB0", "baud": 38400},
+                   {"name": "can0", "protocol": "nmea2000", "interface": "socketcan", "channel": "can0"}],
+    "sensors": [{"name": "gnss1", "kind": "position", "transport": "serial", "rate_hz": 5, "sigma_m": 0.5,
+                 "lever_arm_m": [1.0, 0.0]},
+                {"name": "gyro1", "kind": "heading", "transport": "can0", "source_address": 7, "sigma_deg": 0.1}],
+}
+
+
+def test_every_shipped_example_validates(capsys: pytest.CaptureFixture[str]) -> None:
+    assert len(EXAMPLES) >= 5
+    for path in EXAMPLES:
+        assert main(["check-config", str(path)]) == 0, path
+        assert "OK" in capsys.readouterr().out
+    names = {load_config(p).vessel.name for p in EXAMPLES}
+    assert {"cybership2", "supply", "shuttle_tanker", "blue_lady", "mariner"} <= names
+
+
+@pytest.mark.parametrize(("edit", "path_expected"), [
+    (lambda c: c.update(vessel_id="a/b"), "vessel_id"),
+    (lambda c: c.update(vessel="titanic"), "vessel"),
+    (lambda c: c["sensors"][0].update(kind="sonar"), "sensors[0].kind"),
+    (lambda c: c["sensors"][0].update(rate_hz="fast"), "sensors[0].rate_hz"),
+    (lambda c: c["sensors"][0].update(rate_hz=-1), "sensors[0].rate_hz"),
+    (lambda c: c["sensors"][0].update(sigma_m=0), "sensors[0].sigma_m"),
+    (lambda c: c["sensors"][0].update(lever_arm_m=[1.0]), "sensors[0].lever_arm_m"),
+    (lambda c: c["sensors"][0].update(transport="nowhere"), "sensors[0].transport"),
+    (lambda c: c["sensors"][0].update(talker="GPS"), "sensors[0].talker"),
+    (lambda c: c["sensors"][0].update(sentences=["XYZ"]), "sensors[0].sentences[0]"),
+    (lambda c: c["sensors"][0].update(source_address=3), "sensors[0].source_address"),
+    (lambda c: c["sensors"][1].update(source_address=300), "sensors[1].source_address"),
+    (lambda c: c["sensors"][1].update(sigma_deg="x"), "sensors[1].sigma_deg"),
+    (lambda c: c["sensors"][1].update(typo=1), "sensors[1].typo"),
+    (lambda c: c["sensors"].append(dict(c["sensors"][0])), "sensors[2].name"),
+    (lambda c: c["transports"][0].update(baud=10), "transports[0].baud"),
+    (lambda c: c["transports"][0].update(protocol="nmea3000"), "transports[0].protocol"),
+    (lambda c: c["transports"][0].pop("port"), "transports[0].port"),
+    (lambda c: c["transports"][1].update(channle="can1"), "transports[1].channle"),
+    (lambda c: c.update(vessel={"base": "cybership2", "thrusters": [{"name": "t", "kind": "tunnel", "x_m": 1,
+                                                                      "y_m": 0, "max_thrust_n": -1}]}),
+     "vessel.thrusters[0].max_thrust_n"),
+    (lambda c: c.update(vessel={"base": "cybership2", "thrusters": [{"name": "t", "kind": "jet", "x_m": 1,
+                                                                      "y_m": 0, "max_thrust_n": 1}]}),
+     "vessel.thrusters[0].kind"),
+    (lambda c: c.update(vessel={"base": "cybership2", "thrusters": [{"name": "t", "kind": "tunnel", "x_m": "a",
+                                                                      "y_m": 0, "max_thrust_n": 1}]}),
+     "vessel.thrusters[0].x_m"),
+    (lambda c: c.update(vessel={"base": "cybership2", "thrusters": [{"name": "t", "kind": "azimuth", "x_m": 0,
+                                                                      "y_m": 0, "max_thrust_n": 1,
+                                                                      "azimuth_rate_limit_degps": 0}]}),
+     "vessel.thrusters[0].azimuth_rate_limit_degps"),
+    (lambda c: c.update(vessel={"base": "cybership2", "thrusters": [{"name": "t", "kind": "propeller_rudder",
+                                                                      "x_m": -1, "y_m": 0, "max_thrust_n": 1}]}),
+     "vessel.thrusters[0].rudder_max_angle_deg"),
+    (lambda c: c.update(estimator={"kind": "mmae", "omegas_rad_s": [0.3, 9.0]}), "estimator.omegas_rad_s[1]"),
+    (lambda c: c.update(estimator={"kind": "kf", "omega_rad_s": "x"}), "estimator.omega_rad_s"),
+    (lambda c: c.update(estimator={"kind": "ekf"}), "estimator.kind"),
+    (lambda c: c.update(control={"kind": "pid", "kp": [[1, 0, 0]]}), "control.kp"),
+    (lambda c: c.update(guidance={"max_speed_mps": 0}), "guidance.max_speed_mps"),
+    (lambda c: c.update(hub={"jump_min_m": -4}), "hub.jump_min_m"),
+    (lambda c: c.update(fallback={"position_loss": "panic"}), "fallback.position_loss"),
+    (lambda c: c.update(zenoh={"listen": ["0.0.0.0"]}), "zenoh.listen[0]"),
+    (lambda c: c.update(loop={"rate_hz": 1000}), "loop.rate_hz"),
+    (lambda c: c.update(recorder={"flush_s": 5}), "recorder.flush_s"),
+    (lambda c: c.update(unknown_section={}), "unknown_section"),
+])
+def test_bad_field_is_refused_with_its_key_path(edit, path_expected: str) -> None:
+    config = copy.deepcopy(BASE)
+    edit(config)
+    with pytest.raises(ConfigError) as excinfo:
+        parse_config(config, file="vessel.yaml")
+    message = str(excinfo.value)
+    assert message.startswith("vessel.yaml: ")
+    assert path_expected in message, message
+
+
+def test_base_config_is_valid() -> None:
+    config = parse_config(copy.deepcopy(BASE))
+    assert [s.name for s in config.sensors] == ["gnss1", "gyro1"]
+
+
+def test_check_config_cli_refuses_a_broken_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    broken = copy.deepcopy(BASE)
+    broken["sensors"][0]["rate_hz"] = "often"
+    path = tmp_path / "broken.yaml"
+    path.write_text(yaml.safe_dump(broken))
+    assert main(["check-config", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert str(path) in err and "sensors[0].rate_hz" in err and "expected a number" in err
+    bad_yaml = tmp_path / "bad.yaml"
+    bad_yaml.write_text("vessel_id: [unclosed\n")
+    assert main(["check-config", str(bad_yaml)]) == 2
+    assert "valid YAML" in capsys.readouterr().err
+    assert main(["check-config", str(tmp_path / "missing.yaml")]) == 2
+
+
+def test_daemon_refuses_to_start_on_an_invalid_config(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    broken = copy.deepcopy(BASE)
+    broken["sensors"][1]["kind"] = "compass"
+    path = tmp_path / "broken.yaml"
+    path.write_text(yaml.safe_dump(broken))
+    assert main(["run", "--config", str(path), "--duration", "1"]) == 2
+    assert "sensors[1].kind" in capsys.readouterr().err
