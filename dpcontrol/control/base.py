@@ -1,0 +1,141 @@
+"""Types shared by the DP position controllers (PID / PD + bias feed-forward, MRAC).
+
+All controllers work in the vessel-parallel frame (seed 002 eq. (14)): the NED pose error is
+rotated into body axes with the estimated heading,
+
+    e_b = Rᵀ(ψ̂) (η̂ − η_d),  with the heading component ssa(ψ̂ − ψ_d),
+
+and the commanded generalized force ``tau_b = [X_n, Y_n, N_nm]`` is in body axes (surge, sway,
+yaw), the frame of the thrust allocation.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from dpcontrol.guidance.reference_model import Reference
+from dpcontrol.models.frames import ssa
+
+DofMask = tuple[bool, bool, bool]
+ALL_DOFS: DofMask = (True, True, True)
+HEADING_ONLY: DofMask = (False, False, True)
+
+
+@dataclass(frozen=True, eq=False)
+class ControlOutput:
+    """One controller step.
+
+    Attributes
+    ----------
+    tau_b : ndarray, shape (3,)
+        Commanded generalized force in body axes ``[N, N, N·m]`` (zero in disabled DOFs).
+    error_b : ndarray, shape (3,)
+        Pose error ``e_b = Rᵀ(ψ̂)(η̂ − η_d)`` ``[m, m, rad]`` (for MRAC: against its reference model
+        ``y_M``).
+    velocity_error_b : ndarray, shape (3,)
+        ``ν̂ − Rᵀ(ψ̂) η̇_d`` ``[m/s, m/s, rad/s]``.
+    parameters : mapping of str to float, or None
+        MRAC parameter estimates (``mass_surge_kg``, ``mass_sway_kg``, ``inertia_yaw_kgm2``,
+        ``damping_surge_nspm``, ``damping_sway_nspm``, ``damping_yaw_nmsprad``); None for PID.
+    """
+
+    tau_b: np.ndarray
+    error_b: np.ndarray
+    velocity_error_b: np.ndarray
+    parameters: Mapping[str, float] | None = None
+
+
+@runtime_checkable
+class PositionController(Protocol):
+    """What the runtime calls every control period (PID and MRAC both implement it)."""
+
+    def step(self, dt_s: float, eta_hat_n: np.ndarray, nu_hat_b: np.ndarray, bias_hat_b: np.ndarray | None,
+             reference: Reference, *, dof_enabled: Sequence[bool] = ALL_DOFS,
+             tau_wind_ff_b: np.ndarray | None = None) -> ControlOutput: ...
+
+    def notify_achieved(self, tau_achieved_b: np.ndarray) -> None: ...
+
+    def reset(self) -> None: ...
+
+    def state_dict(self) -> dict[str, Any]: ...
+
+    def load_state_dict(self, state: Mapping[str, Any]) -> None: ...
+
+
+def vector3(name: str, value: Any) -> np.ndarray:
+    """``value`` as a finite float array of shape (3,), or ValueError naming ``name``.
+
+    A float64 array of shape (3,) is returned as is (not copied): callers must not modify it.
+    """
+    if type(value) is np.ndarray and value.shape == (3,) and value.dtype == np.float64:
+        a, b, c = value.tolist()  # three float checks are cheaper than np.isfinite(...).all()
+        if math.isfinite(a) and math.isfinite(b) and math.isfinite(c):
+            return value
+        raise ValueError(f"{name} must be 3 finite numbers, got {value!r}")
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be 3 finite numbers, got {value!r}") from None
+    if array.shape != (3,) or not np.all(np.isfinite(array)):
+        raise ValueError(f"{name} must be 3 finite numbers, got {value!r}")
+    return array
+
+
+def floats3(name: str, value: Any) -> tuple[float, float, float]:
+    """``value`` as three finite Python floats, or ValueError naming ``name``."""
+    try:
+        a, b, c = value.tolist() if type(value) is np.ndarray else value
+        a, b, c = float(a), float(b), float(c)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be 3 finite numbers, got {value!r}") from None
+    if not (math.isfinite(a) and math.isfinite(b) and math.isfinite(c)):
+        raise ValueError(f"{name} must be 3 finite numbers, got {value!r}")
+    return a, b, c
+
+
+def dof_mask(value: Sequence[bool]) -> DofMask:
+    """Validate a ``dof_enabled`` argument (three booleans: surge, sway, yaw)."""
+    if len(value) != 3:
+        raise ValueError(f"dof_enabled must have 3 entries (surge, sway, yaw), got {value!r}")
+    return (bool(value[0]), bool(value[1]), bool(value[2]))
+
+
+def check_dt(dt_s: float) -> float:
+    """``dt_s`` as a float > 0, or ValueError."""
+    try:
+        dt = float(dt_s)
+    except (TypeError, ValueError):
+        dt = math.nan
+    if isinstance(dt_s, bool) or not (math.isfinite(dt) and dt > 0.0):
+        raise ValueError(f"dt_s must be a finite number > 0, got {dt_s!r}")
+    return dt
+
+
+def vessel_parallel_errors(eta_hat_n: np.ndarray, nu_hat_b: np.ndarray, eta_d_n: np.ndarray,
+                           eta_dot_d_n: np.ndarray, eta_ddot_d_n: np.ndarray
+                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Errors and reference rotated into body axes with the estimated heading.
+
+    Returns
+    -------
+    e_b, e_dot_b, nu_d_b, nu_dot_d_b : ndarray, shape (3,)
+        ``e_b = Rᵀ(ψ̂)(η̂ − η_d)`` (heading by ssa), ``ė_b = ν̂ − ν_d``, ``ν_d = Rᵀ(ψ̂)η̇_d`` and
+        ``ν̇_d ≈ Rᵀ(ψ̂)η̈_d`` (the ``S(r)ν_d`` term is dropped: low-speed DP, seed 002 eq. (14)).
+    """
+    psi = float(eta_hat_n[2])
+    c = math.cos(psi)
+    s = math.sin(psi)
+    dn = float(eta_hat_n[0] - eta_d_n[0])
+    de = float(eta_hat_n[1] - eta_d_n[1])
+    e_b = np.array([c * dn + s * de, -s * dn + c * de, ssa(psi - float(eta_d_n[2]))])
+    nu_d_b = np.array([c * eta_dot_d_n[0] + s * eta_dot_d_n[1], -s * eta_dot_d_n[0] + c * eta_dot_d_n[1],
+                       eta_dot_d_n[2]])
+    nu_dot_d_b = np.array([c * eta_ddot_d_n[0] + s * eta_ddot_d_n[1], -s * eta_ddot_d_n[0] + c * eta_ddot_d_n[1],
+                           eta_ddot_d_n[2]])
+    e_dot_b = np.asarray(nu_hat_b, dtype=float) - nu_d_b
+    return e_b, e_dot_b, nu_d_b, nu_dot_d_b

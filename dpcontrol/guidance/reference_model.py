@@ -1,0 +1,363 @@
+"""Third-order reference model with velocity and acceleration limits (DP set-point guidance).
+
+An operator set-point (north, east, heading) is turned into a smooth reference
+``η_d, η̇_d, η̈_d`` in NED. Per degree of freedom the model is Fossen's cascade of a first-order
+low-pass filter and a mass–spring–damper (Fossen 2021, *Handbook of Marine Craft Hydrodynamics
+and Motion Control*, §12.1.1), the shape seed 003 uses for its reference model (natural period
+200 s, ζ = 1):
+
+    ṙ_f  = ω (r − r_f)                                   (low-pass pre-filter)
+    η̈_d = ω² (r_f − η_d) − 2ζω η̇_d                     (mass–spring–damper)
+
+which together give ``η_d⁽³⁾ + (2ζ+1)ω η̈_d + (2ζ+1)ω² η̇_d + ω³ η_d = ω³ r``. The
+mass–spring–damper is written as a velocity loop,
+
+    v_c  = ω/(2ζ) · (r_f − η_d),        η̈_d = 2ζω (v_c − η̇_d),
+
+which is the same linear model, so that the limits can be applied *inside* it: the commanded
+velocity ``v_c`` is saturated at the configured speed (as a horizontal vector, so a diagonal move
+goes straight at the configured speed, not √2 faster) and at the braking speed
+``√(a_max·|r_f − η_d|)`` (so the acceleration limit can always stop the reference without
+overshoot), and ``η̈_d`` is saturated at the acceleration limit. A set-point 1 km away therefore
+makes the reference travel at the configured speed — no force spike — while small steps follow
+the linear third-order response, which has real poles at ζ = 1 and hence no overshoot. Heading
+errors use the smallest signed angle, so a heading change across ±180° takes the short way.
+
+Integration: semi-implicit Euler with sub-steps chosen so that ``2ζω·h ≤ 0.2``; the velocity
+update ``v ← v + h·2ζω(v_c − v)`` is then a convex combination of ``v`` and ``v_c``, so the speed
+limit holds exactly in discrete time too.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from dpcontrol.models.frames import ssa
+from dpcontrol.models.schema import ConfigError, Section, check_vector
+from dpcontrol.models.vessels import VesselData
+
+# Froude-scaled defaults (see :func:`default_reference_config`), stated for a 100 m vessel.
+_REFERENCE_LENGTH_M = 100.0
+_DEFAULT_PERIOD_100M_S = 150.0
+_DEFAULT_SPEED_100M_MPS = 0.5
+_DEFAULT_ACCEL_MPS2 = 0.01
+_DEFAULT_YAW_RATE_100M_RADPS = math.radians(1.0)
+_DEFAULT_YAW_ACCEL_100M_RADPS2 = math.radians(0.05)
+_STEP_ACCURACY = 0.2  # largest 2ζω·h (and ω·h) per integration sub-step
+
+
+@dataclass(frozen=True)
+class ReferenceModelConfig:
+    """Parameters of the reference model (SI).
+
+    Attributes
+    ----------
+    natural_period_s : tuple of 3 float
+        Natural period ``2π/ω`` per DOF (north, east, heading) [s] (seed 003: 200 s).
+    relative_damping : tuple of 3 float
+        Relative damping ratio ζ per DOF (seed 003: 1.0, no overshoot).
+    max_speed_mps : float
+        Largest horizontal speed of the reference (norm of the north/east velocity) [m/s].
+    max_accel_mps2 : float
+        Largest horizontal acceleration (norm) [m/s²].
+    max_yaw_rate_radps : float
+        Largest heading rate [rad/s].
+    max_yaw_accel_radps2 : float
+        Largest heading acceleration [rad/s²].
+    """
+
+    natural_period_s: tuple[float, float, float] = (150.0, 150.0, 150.0)
+    relative_damping: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    max_speed_mps: float = 0.5
+    max_accel_mps2: float = 0.01
+    max_yaw_rate_radps: float = math.radians(1.0)
+    max_yaw_accel_radps2: float = math.radians(0.05)
+
+    def __post_init__(self) -> None:
+        periods = tuple(float(p) for p in self.natural_period_s)
+        zetas = tuple(float(z) for z in self.relative_damping)
+        if len(periods) != 3 or len(zetas) != 3:
+            raise ValueError("natural_period_s and relative_damping need 3 values (north, east, heading)")
+        if not all(math.isfinite(p) and p > 0.0 for p in periods):
+            raise ValueError(f"natural periods must be finite and > 0, got {periods}")
+        if not all(math.isfinite(z) and z > 0.0 for z in zetas):
+            raise ValueError(f"relative damping must be finite and > 0, got {zetas}")
+        for name in ("max_speed_mps", "max_accel_mps2", "max_yaw_rate_radps", "max_yaw_accel_radps2"):
+            value = float(getattr(self, name))
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f"{name} must be finite and > 0, got {value}")
+            object.__setattr__(self, name, value)
+        object.__setattr__(self, "natural_period_s", periods)
+        object.__setattr__(self, "relative_damping", zetas)
+
+
+@dataclass(frozen=True, eq=False)
+class Reference:
+    """Reference state at one sample (NED, heading wrapped to (−π, π]).
+
+    Attributes
+    ----------
+    eta_d_n : ndarray, shape (3,)
+        Desired pose ``[north_m, east_m, psi_rad]``.
+    eta_dot_d_n : ndarray, shape (3,)
+        Desired NED velocity ``[m/s, m/s, rad/s]``.
+    eta_ddot_d_n : ndarray, shape (3,)
+        Desired NED acceleration ``[m/s², m/s², rad/s²]``.
+    """
+
+    eta_d_n: np.ndarray
+    eta_dot_d_n: np.ndarray
+    eta_ddot_d_n: np.ndarray
+
+    @staticmethod
+    def hold(eta_n: np.ndarray) -> Reference:
+        """A reference at rest at ``eta_n`` (e.g. for tests or station keeping without guidance)."""
+        return Reference(np.array(eta_n, dtype=float), np.zeros(3), np.zeros(3))
+
+
+def default_reference_config(vessel: VesselData) -> ReferenceModelConfig:
+    """Default reference model for a vessel, Froude-scaled from a 100 m DP vessel.
+
+    At L = 100 m: natural period 150 s (between seed 003's 200 s for the 260 m tanker and the
+    ≈ 19 s closed-loop period of seed 000's PID on the 1.255 m CyberShip II, both scaled to
+    100 m), speed 0.5 m/s, acceleration 0.01 m/s², heading rate 1 °/s, heading acceleration
+    0.05 °/s². Froude scaling with λ = L/100 m: times and speeds × √λ, linear accelerations × 1,
+    angular rates × 1/√λ, angular accelerations × 1/λ. The shuttle tankers use seed 003's 200 s.
+    """
+    scale = vessel.length_m / _REFERENCE_LENGTH_M
+    root = math.sqrt(scale)
+    period = 200.0 if vessel.name.startswith("shuttle_tanker") else _DEFAULT_PERIOD_100M_S * root
+    return ReferenceModelConfig(
+        natural_period_s=(period, period, period),
+        relative_damping=(1.0, 1.0, 1.0),
+        max_speed_mps=_DEFAULT_SPEED_100M_MPS * root,
+        max_accel_mps2=_DEFAULT_ACCEL_MPS2,
+        max_yaw_rate_radps=_DEFAULT_YAW_RATE_100M_RADPS / root,
+        max_yaw_accel_radps2=_DEFAULT_YAW_ACCEL_100M_RADPS2 / scale,
+    )
+
+
+def reference_config_from_mapping(value: object, vessel: VesselData, path: str = "guidance") -> ReferenceModelConfig:
+    """Validate a ``guidance:`` config mapping (degrees at the edge) over the vessel defaults.
+
+    Keys (all optional): ``natural_period_s`` (number or list of 3), ``relative_damping`` (number or
+    list of 3), ``max_speed_mps``, ``max_accel_mps2``, ``max_yaw_rate_degps``,
+    ``max_yaw_accel_degps2``.
+
+    Raises
+    ------
+    ConfigError
+        Naming the key path and what was expected.
+    """
+    base = default_reference_config(vessel)
+    section = Section.of(value, path)
+
+    def triple(key: str, default: tuple[float, float, float]) -> tuple[float, float, float]:
+        raw = section.raw(key, None)
+        if raw is None:
+            return default
+        if isinstance(raw, (int, float)) and not isinstance(raw, bool):
+            raw = [raw, raw, raw]
+        vector = check_vector(raw, f"{section.path}.{key}", 3)
+        if np.any(vector <= 0.0):
+            raise ConfigError(f"{section.path}.{key}", "positive numbers", raw)
+        return (float(vector[0]), float(vector[1]), float(vector[2]))
+
+    def positive(key: str, default: float) -> float:
+        return section.number(key, default, minimum=0.0, exclusive_minimum=True)
+
+    config = ReferenceModelConfig(
+        natural_period_s=triple("natural_period_s", base.natural_period_s),
+        relative_damping=triple("relative_damping", base.relative_damping),
+        max_speed_mps=positive("max_speed_mps", base.max_speed_mps),
+        max_accel_mps2=positive("max_accel_mps2", base.max_accel_mps2),
+        max_yaw_rate_radps=math.radians(positive("max_yaw_rate_degps", math.degrees(base.max_yaw_rate_radps))),
+        max_yaw_accel_radps2=math.radians(
+            positive("max_yaw_accel_degps2", math.degrees(base.max_yaw_accel_radps2))),
+    )
+    section.finish()
+    return config
+
+
+def _finite3(name: str, value: Any) -> tuple[float, float, float]:
+    array = np.asarray(value, dtype=float)
+    if array.shape != (3,) or not np.all(np.isfinite(array)):
+        raise ValueError(f"{name} must be 3 finite numbers, got {value!r}")
+    return float(array[0]), float(array[1]), float(array[2])
+
+
+class ReferenceModel:
+    """Set-point → smooth ``(η_d, η̇_d, η̈_d)`` in NED with speed/acceleration limits.
+
+    Parameters
+    ----------
+    config : ReferenceModelConfig
+        Natural periods, damping and limits.
+
+    Notes
+    -----
+    Call :meth:`reset` with the current estimate when DP is engaged (bumpless entry: the
+    reference starts where the vessel is, moving as it moves). Until then :meth:`step`
+    initialises the model at the first set-point.
+    """
+
+    __slots__ = ("_a", "_config", "_initialised", "_omega", "_rf", "_v", "_x", "_zeta")
+
+    def __init__(self, config: ReferenceModelConfig) -> None:
+        self._config = config
+        self._omega = tuple(2.0 * math.pi / p for p in config.natural_period_s)
+        self._zeta = config.relative_damping
+        self._rf = [0.0, 0.0, 0.0]
+        self._x = [0.0, 0.0, 0.0]
+        self._v = [0.0, 0.0, 0.0]
+        self._a = [0.0, 0.0, 0.0]
+        self._initialised = False
+
+    @property
+    def config(self) -> ReferenceModelConfig:
+        return self._config
+
+    @property
+    def initialised(self) -> bool:
+        """Whether the model holds a state (after :meth:`reset`, :meth:`step` or a loaded state)."""
+        return self._initialised
+
+    def reset(self, eta_n: np.ndarray, nu_n: np.ndarray | None = None) -> None:
+        """Start the reference at the current estimate (bumpless entry into DP).
+
+        Parameters
+        ----------
+        eta_n : array_like, shape (3,)
+            Current pose ``[north_m, east_m, psi_rad]``.
+        nu_n : array_like, shape (3,), optional
+            Current velocity **in NED** ``η̇ = R(ψ)ν`` ``[m/s, m/s, rad/s]`` (zero if omitted). The
+            pre-filter state is placed so that the commanded velocity equals it: the reference
+            then decelerates smoothly instead of jumping to rest.
+        """
+        north, east, psi = _finite3("eta_n", eta_n)
+        v = (0.0, 0.0, 0.0) if nu_n is None else _finite3("nu_n", nu_n)
+        self._x = [north, east, ssa(psi)]
+        self._v = list(v)
+        self._a = [0.0, 0.0, 0.0]
+        # v_c = ω/(2ζ)(r_f − η_d) = v  ⇒  r_f = η_d + 2ζ/ω · v
+        self._rf = [self._x[i] + 2.0 * self._zeta[i] / self._omega[i] * v[i] for i in range(3)]
+        self._rf[2] = ssa(self._rf[2])
+        self._initialised = True
+
+    def current(self) -> Reference:
+        """The reference at the last step (new arrays)."""
+        return Reference(np.array(self._x), np.array(self._v), np.array(self._a))
+
+    def step(self, dt_s: float, setpoint_eta_n: np.ndarray) -> Reference:
+        """Advance the model by ``dt_s`` towards ``setpoint_eta_n``.
+
+        Parameters
+        ----------
+        dt_s : float
+            Sample time [s] (>= 0; 0 returns the current reference).
+        setpoint_eta_n : array_like, shape (3,)
+            Operator set-point ``[north_m, east_m, psi_rad]`` (heading any wrap).
+
+        Returns
+        -------
+        Reference
+            ``η_d, η̇_d, η̈_d`` at ``t + dt_s`` (new arrays).
+
+        Raises
+        ------
+        ValueError
+            On a negative or non-finite ``dt_s`` or a non-finite set-point (the state is kept).
+        """
+        if not (math.isfinite(dt_s) and dt_s >= 0.0):
+            raise ValueError(f"dt_s must be finite and >= 0, got {dt_s!r}")
+        r_n, r_e, r_psi = _finite3("setpoint_eta_n", setpoint_eta_n)
+        if not self._initialised:
+            self.reset(np.array([r_n, r_e, r_psi]))
+        if dt_s == 0.0:
+            return self.current()
+        cfg = self._config
+        w_n, w_e, w_p = self._omega
+        z_n, z_e, z_p = self._zeta
+        rate = max(2.0 * z_n * w_n, 2.0 * z_e * w_e, 2.0 * z_p * w_p, w_n, w_e, w_p)
+        substeps = max(1, math.ceil(dt_s * rate / _STEP_ACCURACY))
+        h = dt_s / substeps
+        vmax = cfg.max_speed_mps
+        amax = cfg.max_accel_mps2
+        rmax = cfg.max_yaw_rate_radps
+        rdotmax = cfg.max_yaw_accel_radps2
+        rf_n, rf_e, rf_p = self._rf
+        x_n, x_e, x_p = self._x
+        v_n, v_e, v_p = self._v
+        a_n = a_e = a_p = 0.0
+        r_psi = ssa(r_psi)
+        for _ in range(substeps):
+            # first-order pre-filter (heading error by ssa: the short way round)
+            rf_n += h * w_n * (r_n - rf_n)
+            rf_e += h * w_e * (r_e - rf_e)
+            rf_p = ssa(rf_p + h * w_p * ssa(r_psi - rf_p))
+            # commanded velocity of the mass–spring–damper, limited by speed and braking distance
+            e_n = rf_n - x_n
+            e_e = rf_e - x_e
+            e_p = ssa(rf_p - x_p)
+            vc_n = w_n / (2.0 * z_n) * e_n
+            vc_e = w_e / (2.0 * z_e) * e_e
+            speed = math.hypot(vc_n, vc_e)
+            limit = min(vmax, math.sqrt(amax * math.hypot(e_n, e_e)))
+            if speed > limit:
+                scale = limit / speed
+                vc_n *= scale
+                vc_e *= scale
+            vc_p = w_p / (2.0 * z_p) * e_p
+            limit = min(rmax, math.sqrt(rdotmax * abs(e_p)))
+            if abs(vc_p) > limit:
+                vc_p = math.copysign(limit, vc_p)
+            # acceleration, limited (horizontal as a vector)
+            a_n = 2.0 * z_n * w_n * (vc_n - v_n)
+            a_e = 2.0 * z_e * w_e * (vc_e - v_e)
+            accel = math.hypot(a_n, a_e)
+            if accel > amax:
+                scale = amax / accel
+                a_n *= scale
+                a_e *= scale
+            a_p = 2.0 * z_p * w_p * (vc_p - v_p)
+            if abs(a_p) > rdotmax:
+                a_p = math.copysign(rdotmax, a_p)
+            # semi-implicit Euler
+            v_n += h * a_n
+            v_e += h * a_e
+            v_p += h * a_p
+            x_n += h * v_n
+            x_e += h * v_e
+            x_p = ssa(x_p + h * v_p)
+        self._rf = [rf_n, rf_e, rf_p]
+        self._x = [x_n, x_e, x_p]
+        self._v = [v_n, v_e, v_p]
+        self._a = [a_n, a_e, a_p]
+        return self.current()
+
+    def state_dict(self) -> dict[str, Any]:
+        """JSON-able state (for a bumpless restart)."""
+        return {
+            "initialised": self._initialised,
+            "prefilter_n": list(self._rf),
+            "eta_d_n": list(self._x),
+            "eta_dot_d_n": list(self._v),
+            "eta_ddot_d_n": list(self._a),
+        }
+
+    def load_state_dict(self, state: Mapping[str, Any]) -> None:
+        """Restore a state from :meth:`state_dict` (validated; on error nothing changes)."""
+        try:
+            initialised = bool(state["initialised"])
+            values = [_finite3(key, state[key]) for key in ("prefilter_n", "eta_d_n", "eta_dot_d_n", "eta_ddot_d_n")]
+        except (KeyError, TypeError, ValueError) as error:
+            raise ValueError(f"invalid reference model state: {error}") from None
+        self._rf, self._x, self._v, self._a = (list(v) for v in values)
+        self._rf[2] = ssa(self._rf[2])
+        self._x[2] = ssa(self._x[2])
+        self._initialised = initialised

@@ -1,0 +1,201 @@
+"""MRAC-augmented PD (seed 003): the 12 h offloading case on surge, robustness, structure, state."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import json
+import math
+
+import numpy as np
+import pytest
+from scipy.linalg import solve_continuous_lyapunov
+
+from dpcontrol.control import MracConfig, MracController, default_mrac_config
+from dpcontrol.control.factory import control_config_from_mapping
+from dpcontrol.control.mrac import PARAMETER_NAMES
+from dpcontrol.control.offloading_case import OffloadingCase, default_offloading_mrac_config, simulate_offloading
+from dpcontrol.guidance import Reference
+from dpcontrol.models.schema import ConfigError
+from dpcontrol.models.vessels import SHUTTLE_TANKER, SHUTTLE_TANKER_FULL, SUPPLY
+
+SURGE = (True, False, False)
+
+
+@functools.cache
+def offloading(adaptive: bool):
+    """Seed 003's 12 h loading, single-DOF surge, dt = 1 s (corrections ±20 m every 30 min)."""
+    return simulate_offloading(OffloadingCase(dt_s=1.0), adaptive)
+
+
+def test_mrac_tracks_its_reference_model_through_12_h_of_loading() -> None:
+    result = offloading(True)
+    # the mass ramps from ballast to full load (the last sample is 1 s before the end)
+    assert result.mass_true_kg[-1] / result.mass_true_kg[0] == pytest.approx(
+        SHUTTLE_TANKER_FULL.mass_matrix[0, 0] / SHUTTLE_TANKER.mass_matrix[0, 0], rel=1e-4)
+    assert result.tracking_error_after(3600.0) < 0.5  # seed 003: < 0.5 m after a short transient
+    assert np.max(result.overshoots_m()) < 0.3
+
+
+def test_mrac_estimates_the_mass_of_the_loaded_tanker() -> None:
+    result = offloading(True)
+    assert abs(result.final_mass_error()) < 0.10
+    assert result.mass_hat_kg[-1] > 2.0 * result.mass_hat_kg[0]  # it followed the loading
+
+
+def test_fixed_pd_tuned_at_ballast_overshoots_more_and_more() -> None:
+    result = offloading(False)
+    overshoots = result.overshoots_m()
+    first, last = overshoots[1:5].mean(), overshoots[-4:].mean()
+    assert last > 1.0
+    assert last > 5.0 * first
+    assert np.all(np.diff(overshoots[4::4]) > 0.0)  # growing hour by hour
+    assert result.tracking_error_after(3600.0) > 2.0  # what the MRAC keeps below 0.5 m
+    assert np.all(result.mass_hat_kg == result.mass_hat_kg[0])  # parameters frozen
+
+
+def test_no_parameter_drift_while_station_keeping_in_waves() -> None:
+    """12 h at rest in 0.6 m of WF surge and 0.3 m GNSS noise: the mass estimate must not wander."""
+    ballast = OffloadingCase()
+    case = OffloadingCase(duration_s=3 * 3600.0, correction_m=0.0, wf_rms_m=0.6, noise_rms_m=0.3,
+                          mass_end_kg=ballast.mass_start_kg, damping_end_nspm=ballast.damping_start_nspm)
+    robust = simulate_offloading(case, True)
+    assert np.max(np.abs(robust.mass_hat_kg / robust.mass_true_kg - 1.0)) < 0.02
+    # the pure law (21) without gating or dead zone drifts (parameter drift) — what the safeguards prevent
+    config = dataclasses.replace(default_offloading_mrac_config(), dead_zone=(0.0, 0.0, 0.0),
+                                 accel_threshold=(0.0, 0.0, 0.0), velocity_threshold=(0.0, 0.0, 0.0))
+    pure = simulate_offloading(case, True, config)
+    assert pure.mass_hat_kg[-1] / pure.mass_true_kg[-1] > 1.2
+
+
+def test_lyapunov_matrix_and_pd_equivalence_of_eq_25() -> None:
+    config = default_mrac_config(SUPPLY)
+    controller = MracController(config, adapt=False)
+    beta0, beta1 = config.beta0, config.beta1
+    for i in range(3):
+        A = np.array([[0.0, 1.0], [-beta0[i], -beta1[i]]])
+        G = solve_continuous_lyapunov(A.T, -np.diag(config.lyapunov_q))
+        np.testing.assert_allclose(G @ A + A.T @ G, -np.diag(config.lyapunov_q), atol=1e-9 * np.abs(G).max())
+        assert np.all(np.linalg.eigvalsh(G) > 0.0)
+        assert controller._g12[i] == pytest.approx(G[0, 1]) and controller._g22[i] == pytest.approx(G[1, 1])
+    # u = −â₂β₁ė − â₂β₀e + â₂ÿ_M + â₁ẏ: a PD with P = â₂β₀ and D = â₂β₁ (eq. (25))
+    eta = np.array([2.0, -1.0, 0.05])
+    nu = np.array([0.1, 0.05, 0.001])
+    controller.step(0.1, np.zeros(3), np.zeros(3), None, Reference.hold(np.zeros(3)))  # y_M = 0, ẏ_M = 0
+    out = controller.step(0.1, eta, nu, None, Reference.hold(np.zeros(3)))
+    y_m, yd_m = np.zeros(3), np.zeros(3)  # the model stayed at rest (r = y_M = 0)
+    p, d = controller.equivalent_pd_gains()
+    m = np.array(config.mass_nominal)
+    c = np.array(config.damping_nominal)
+    e = out.error_b
+    ed = out.velocity_error_b
+    ydd = beta0 * (np.zeros(3) - y_m) - beta1 * yd_m
+    np.testing.assert_allclose(out.tau_b, -p * e - d * ed + m * ydd + c * nu, rtol=1e-12)
+    np.testing.assert_allclose(p, m * beta0)
+    np.testing.assert_allclose(d, m * beta1)
+
+
+def test_adaptation_converges_to_the_true_mass_in_ideal_conditions() -> None:
+    """Noise-free surge plant of twice the nominal mass, repeated 20 m steps: â₂ → m."""
+    config = default_mrac_config(SHUTTLE_TANKER)
+    controller = MracController(config)
+    m_true = 2.0 * config.mass_nominal[0]
+    c_true = config.damping_nominal[0]
+    y = yd = 0.0
+    dt = 1.0
+    for k in range(4 * 3600):
+        target = 20.0 * ((k // 1800) % 2)
+        out = controller.step(dt, np.array([y, 0.0, 0.0]), np.array([yd, 0.0, 0.0]), None,
+                              Reference.hold(np.array([target, 0.0, 0.0])), dof_enabled=SURGE)
+        u = out.tau_b[0]
+        decay = math.exp(-c_true / m_true * dt)
+        v_inf = u / c_true
+        y += v_inf * dt + (yd - v_inf) * m_true / c_true * (1.0 - decay)
+        yd = v_inf + (yd - v_inf) * decay
+    assert controller.mass_hat[0] == pytest.approx(m_true, rel=0.03)
+    assert controller.mass_hat[1] == config.mass_nominal[1]  # disabled DOFs do not adapt
+    assert out.parameters is not None and set(out.parameters) == set(PARAMETER_NAMES)
+    assert out.parameters["mass_surge_kg"] == controller.mass_hat[0]
+
+
+def test_saturation_freezes_adaptation_and_projection_bounds_the_estimates() -> None:
+    config = default_mrac_config(SUPPLY)
+    controller = MracController(config)
+    controller.step(0.1, np.zeros(3), np.zeros(3), None, Reference.hold(np.zeros(3)))
+    ref = Reference.hold(np.array([50.0, -30.0, 1.0]))  # makes the reference model accelerate
+    out = controller.step(0.1, np.array([5.0, 2.0, 0.1]), np.zeros(3), None, ref)
+    controller.notify_achieved(0.5 * out.tau_b)  # allocator delivered half in every DOF
+    before = controller.mass_hat
+    controller.step(0.1, np.array([5.0, 2.0, 0.1]), np.zeros(3), None, ref)
+    np.testing.assert_array_equal(controller.mass_hat, before)
+    # huge persistent errors with full delivery: the estimates stay within the physical bounds
+    for _ in range(2000):
+        out = controller.step(0.1, np.array([500.0, -300.0, 3.0]), np.array([-5.0, 3.0, 0.1]), None, ref)
+        controller.notify_achieved(out.tau_b)
+    lo, hi = config.mass_bounds_factor
+    nominal = np.array(config.mass_nominal)
+    assert np.all(controller.mass_hat >= lo * nominal - 1e-6) and np.all(controller.mass_hat <= hi * nominal + 1e-6)
+    assert np.any(np.isclose(controller.mass_hat, lo * nominal) | np.isclose(controller.mass_hat, hi * nominal))
+    assert np.all(controller.damping_hat >= 0.0)
+
+
+def test_sigma_modification_leaks_back_to_nominal_exactly() -> None:
+    config = dataclasses.replace(default_mrac_config(SUPPLY), leakage_per_s=1e-3, dead_zone=(1e9, 1e9, 1e9),
+                                 accel_threshold=(0.0, 0.0, 0.0))
+    controller = MracController(config)
+    state = controller.state_dict()
+    state["mass_hat"] = [2.0 * m for m in config.mass_nominal]
+    controller.load_state_dict(state)
+    ref = Reference.hold(np.array([10.0, 0.0, 0.0]))
+    for _ in range(10):
+        controller.step(1.0, np.zeros(3), np.zeros(3), None, ref)
+    nominal = np.array(config.mass_nominal)
+    # with the error inside the dead zone â̇ = −σΓ(â − â_nom): exponential decay at rate σΓ
+    expected = nominal + nominal * np.exp(-1e-3 * np.array(config.adaptation_gain_mass) * 10.0)
+    assert config.adaptation_gain_mass[0] * 1e-3 * 10.0 > 0.1  # a visible decay
+    np.testing.assert_allclose(controller.mass_hat[0], expected[0], rtol=1e-9)
+
+
+def test_reference_model_is_bumpless_heading_safe_and_restartable() -> None:
+    config = default_mrac_config(SUPPLY)
+    a = MracController(config)
+    eta = np.array([10.0, 20.0, math.radians(179.0)])
+    nu = np.array([0.2, 0.0, 0.0])
+    out = a.step(0.1, eta, nu, np.array([1e4, 0.0, 0.0]), Reference.hold(eta))
+    np.testing.assert_allclose(out.error_b, 0.0, atol=1e-12)  # starts on the vessel
+    np.testing.assert_allclose(out.velocity_error_b, 0.0, atol=1e-12)
+    # heading reference across ±180°: y_M turns the short way and stays wrapped
+    target = np.array([10.0, 20.0, math.radians(-179.0)])
+    for _ in range(3000):
+        out = a.step(0.1, eta, np.zeros(3), None, Reference.hold(target))
+    y_m, _ = a.reference_model_state_n
+    assert abs(y_m[2]) > math.radians(178.0)
+    assert -math.pi < y_m[2] <= math.pi
+    assert abs(out.error_b[2]) < math.radians(2.5)
+    b = MracController(config)
+    b.load_state_dict(json.loads(json.dumps(a.state_dict())))
+    np.testing.assert_array_equal(a.step(0.1, eta, nu, None, Reference.hold(target)).tau_b,
+                                  b.step(0.1, eta, nu, None, Reference.hold(target)).tau_b)
+    a.reset()
+    out = a.step(0.1, eta, nu, None, Reference.hold(target))
+    np.testing.assert_allclose(out.error_b, 0.0, atol=1e-12)  # re-initialised at the estimate
+    np.testing.assert_array_equal(a.mass_hat, b.mass_hat)  # parameters survive a reset
+    a.reset_parameters()
+    np.testing.assert_array_equal(a.mass_hat, config.mass_nominal)
+
+
+def test_config_validation() -> None:
+    config = control_config_from_mapping({"kind": "mrac", "natural_period_s": 150, "dead_zone": [0.1, 0.1, 0.01],
+                                          "leakage_per_s": 1e-4}, SUPPLY)
+    assert isinstance(config, MracConfig)
+    assert config.natural_period_s == (150.0, 150.0, 150.0)
+    assert config.dead_zone == (0.1, 0.1, 0.01)
+    with pytest.raises(ConfigError, match=r"control\.dead_zone"):
+        control_config_from_mapping({"kind": "mrac", "dead_zone": [1, 2]}, SUPPLY)
+    with pytest.raises(ConfigError, match="control"):
+        control_config_from_mapping({"kind": "mrac", "mass_bounds_factor": [2.0, 5.0]}, SUPPLY)
+    with pytest.raises(ConfigError, match=r"control\.gamma"):
+        control_config_from_mapping({"kind": "mrac", "gamma": 1.0}, SUPPLY)
+    with pytest.raises(ValueError):
+        MracConfig(mass_nominal=(1.0, -1.0, 1.0), damping_nominal=(0, 0, 0), adaptation_gain_mass=(1, 1, 1),
+                   adaptation_gain_damping=(1, 1, 1))
