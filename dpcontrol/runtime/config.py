@@ -18,6 +18,7 @@ from typing import Any
 
 import yaml
 
+from dpcontrol.allocation.allocator import allocator_kwargs_from_mapping
 from dpcontrol.control import AutopilotConfig, MracConfig, PidConfig, control_config_from_mapping
 from dpcontrol.estimation import WaveFilterConfig
 from dpcontrol.guidance import ReferenceModelConfig, reference_config_from_mapping
@@ -357,8 +358,7 @@ def _parse(mapping: object, text: str, file: str | None) -> DaemonConfig:
         raise ConfigError("control.kind", "autopilot together with estimator kind heading_kf (course keeping), "
                           "or a DP controller with a DP estimator", control.kind)
 
-    allocation_section = root.section("allocation")
-    allocation = dict(allocation_section.data)
+    allocation = allocator_kwargs_from_mapping(root.raw("allocation", None), vessel.thrusters, "allocation")
 
     hub = _parse_hub(root.section("hub"))
 
