@@ -308,7 +308,7 @@ class DpController:
         auto = self.config.auto_engage_s
         if auto is not None and not self._engaged_once and self._valid_since_t_s is not None \
                 and t_s - self._valid_since_t_s >= auto and wanted is Mode.STANDBY:
-            wanted = Mode.AUTO_POSITION
+            wanted = Mode.AUTO_HEADING if self.autopilot is not None else Mode.AUTO_POSITION
             self._requested_mode = wanted
         # Loss of references.
         dead_reckoning = self._estimator_ready and not hub.position_available

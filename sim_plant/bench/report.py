@@ -112,13 +112,15 @@ def summarise(result: RunResult) -> dict[str, Any]:
         e_e = col("east_m")[sl] - col("ref_east_m")[sl]
         e_h = ssa_array(col("heading_rad")[sl] - col("ref_heading_rad")[sl])
         horizontal = np.hypot(e_n, e_e)
-        metrics["position_error_rms_m"] = _round(_rms(horizontal))
-        metrics["position_error_max_m"] = _round(_max_abs(horizontal))
+        if np.any(mode[sl] == 2):  # position errors only mean something in DP (auto_position)
+            metrics["position_error_rms_m"] = _round(_rms(horizontal[mode[sl] == 2]))
+            metrics["position_error_max_m"] = _round(_max_abs(horizontal[mode[sl] == 2]))
         metrics["heading_error_rms_deg"] = _round(None if _rms(e_h) is None else math.degrees(_rms(e_h)))
         metrics["heading_error_max_deg"] = _round(None if _max_abs(e_h) is None else math.degrees(_max_abs(e_h)))
         total = np.hypot(col("north_total_m")[sl] - col("ref_north_m")[sl], col("east_total_m")[sl]
                          - col("ref_east_m")[sl])
-        metrics["total_position_error_max_m"] = _round(_max_abs(total))
+        if np.any(mode[sl] == 2):
+            metrics["total_position_error_max_m"] = _round(_max_abs(total[mode[sl] == 2]))
     est = slice(int(np.flatnonzero(np.isfinite(col("est_north_m")))[0]) if np.any(np.isfinite(col("est_north_m")))
                 else d.shape[0], None)
     metrics["estimate_error_rms_north_m"] = _round(_rms(col("est_north_m")[est] - col("north_m")[est]))
