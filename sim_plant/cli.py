@@ -1,12 +1,193 @@
-"""``sim-plant`` command line (composition layer)."""
+"""``sim-plant`` command line (composition layer): one function per sub-command.
+
+``sim-plant hil SCENARIO --controller-config FILE [--out DIR] [--speed 1.0] [--engage] [--duration S]``
+runs the real-time emulator (:mod:`sim_plant.emulator`) for a separately started
+``dpcontrol run --config FILE``. ``run``, ``demo`` and ``bench`` are placeholders for now.
+
+Exit status: 0 after a clean end (duration reached, SIGTERM or SIGINT), 1 when the emulator fails
+at run time (a link that cannot be opened, an error in the loop), 2 for a usage or configuration
+error (the message names the file and key).
+"""
 
 from __future__ import annotations
 
+import argparse
+import logging
+import signal
 import sys
+from pathlib import Path
+from types import FrameType
+from typing import Any
+
+EXIT_OK, EXIT_FAILURE, EXIT_USAGE = 0, 1, 2
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``sim-plant`` argument parser with every sub-command."""
+    parser = argparse.ArgumentParser(prog="sim-plant", description="Plant emulator of dpcontrol: vessel, sea, "
+                                     "thrusters and sensors, in lockstep or in real time on real transports.")
+    parser.add_argument("--log-level", default="INFO", help="logging level on stderr (default INFO)")
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND")
+    _add_run(commands)
+    _add_hil(commands)
+    _add_demo(commands)
+    _add_bench(commands)
+    return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``sim-plant`` console script."""
-    del argv
-    print("sim-plant: not yet implemented", file=sys.stderr)
-    return 2
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.command is None:
+        parser.print_help(sys.stderr)
+        return EXIT_USAGE
+    level = getattr(logging, str(args.log_level).upper(), None)
+    if not isinstance(level, int):
+        parser.error(f"unknown --log-level {args.log_level!r}")
+    logging.basicConfig(level=level, format="%(asctime)s %(name)s %(levelname)s %(message)s")
+    return int(args.handler(args))
+
+
+def _not_yet(name: str) -> int:
+    print(f"sim-plant {name}: not yet implemented", file=sys.stderr)
+    return EXIT_USAGE
+
+
+# -- run ---------------------------------------------------------------------------------------------
+def _add_run(commands: Any) -> None:
+    sub = commands.add_parser("run", help="lockstep closed-loop simulation (not yet)")
+    sub.add_argument("scenario")
+    sub.add_argument("--out", type=Path)
+    sub.set_defaults(handler=_cmd_run)
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    del args
+    return _not_yet("run")
+
+
+# -- hil ---------------------------------------------------------------------------------------------
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (value > 0.0 and value < float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text!r}")
+    return value
+
+
+def _add_hil(commands: Any) -> None:
+    sub = commands.add_parser(
+        "hil", help="real-time emulator on real transports, for a separately started dpcontrol daemon",
+        description="Run the plant of SCENARIO in real time, speaking NMEA 0183 (pseudo-terminals at the "
+                    "daemon's serial ports), NMEA 2000 (python-can, remote server started), MAVLink (UDP) and "
+                    "Zenoh as configured in the daemon's configuration file.")
+    sub.add_argument("scenario", help="scenario YAML file, or the name of a built-in scenario (demo, cs2-seed000 ...)")
+    sub.add_argument("--controller-config", required=True, type=Path, metavar="FILE",
+                     help="the daemon's configuration file (dpcontrol run --config FILE)")
+    sub.add_argument("--out", type=Path, metavar="DIR", help="write truth.csv, commands.csv, feedback.csv, "
+                     "links.json and hil_summary.json here")
+    sub.add_argument("--speed", type=_positive, default=1.0, help="plant seconds per wall second (default 1)")
+    sub.add_argument("--engage", action="store_true",
+                     help="request DP (auto_position) once the controller is alive and publishing status")
+    sub.add_argument("--duration", type=_positive, metavar="S", help="plant time to run [s] (default: the scenario's)")
+    sub.add_argument("--zenoh-listen", action="append", metavar="ENDPOINT",
+                     help="listen here (repeatable); default: derived from the controller configuration")
+    sub.add_argument("--zenoh-connect", action="append", metavar="ENDPOINT",
+                     help="connect here (repeatable); default: the controller's zenoh.listen endpoints")
+    sub.add_argument("--no-can-server", action="store_true",
+                     help="do not start the python-can-remote server of 'remote' buses (someone else runs it)")
+    sub.set_defaults(handler=_cmd_hil)
+
+
+def _scenario_path(text: str) -> Path:
+    from sim_plant.scenario import builtin_scenario_path  # noqa: PLC0415 - keep --help fast
+
+    path = Path(text)
+    if path.exists() or text.endswith((".yaml", ".yml")) or "/" in text:
+        return path
+    return builtin_scenario_path(text)
+
+
+def _cmd_hil(args: argparse.Namespace) -> int:
+    # imported here so that `sim-plant --help` and the stubs do not load zenoh, python-can, pymavlink
+    from dpcontrol.models.schema import ConfigError  # noqa: PLC0415
+    from sim_plant.emulator import HilEmulator, HilError, HilOptions  # noqa: PLC0415
+    from sim_plant.hil_config import load_controller_wiring  # noqa: PLC0415
+    from sim_plant.scenario import load_scenario  # noqa: PLC0415
+
+    try:
+        scenario = load_scenario(_scenario_path(args.scenario))
+        wiring = load_controller_wiring(args.controller_config)
+        options = HilOptions(speed=args.speed, duration_s=args.duration, engage=args.engage, out_dir=args.out,
+                             zenoh_listen=None if args.zenoh_listen is None else tuple(args.zenoh_listen),
+                             zenoh_connect=None if args.zenoh_connect is None else tuple(args.zenoh_connect),
+                             can_server=not args.no_can_server)
+        emulator = HilEmulator(scenario, wiring, options)
+    except (ConfigError, ValueError, KeyError, OSError) as error:
+        message = error.args[0] if isinstance(error, KeyError) and error.args else error
+        print(f"sim-plant hil: {message}", file=sys.stderr)
+        return EXIT_USAGE
+
+    def _on_signal(signum: int, _frame: FrameType | None) -> None:
+        emulator.stop_from_signal(f"signal {signal.Signals(signum).name}")
+
+    previous = {sig: signal.signal(sig, _on_signal) for sig in (signal.SIGTERM, signal.SIGINT)}
+    try:
+        try:
+            emulator.open()
+        except HilError as error:
+            print(f"sim-plant hil: {error}", file=sys.stderr)
+            return EXIT_FAILURE
+        for wire in emulator.wires:
+            link = emulator.links[wire.transport.name]
+            where = link.describe()
+            target = where.get("device") or where.get("bus") or where.get("remote")
+            print(f"sim-plant hil: {wire.spec.name} ({wire.spec.kind}, {wire.spec.rate_hz:g} Hz) -> "
+                  f"{wire.transport.protocol} {wire.transport.name} {target}", flush=True)
+        print(f"sim-plant hil: zenoh vessel {wiring.vessel_id}, listen {list(emulator.zenoh_listen)}, "
+              f"connect {list(emulator.zenoh_connect)}", flush=True)
+        try:
+            summary = emulator.run()
+        except Exception as error:  # logged with its traceback by the emulator
+            print(f"sim-plant hil: failed: {type(error).__name__}: {error}", file=sys.stderr)
+            return EXIT_FAILURE
+        loop = summary["loop"]
+        print(f"sim-plant hil: stopped ({summary['stopped_by']}) at plant time {summary['duration_s']:.2f} s; "
+              f"{loop['wakeups']} wake-ups, {loop['missed_deadlines']} missed deadlines, "
+              f"{summary['counts']['commands_applied']} commands applied", flush=True)
+        return EXIT_OK
+    finally:
+        emulator.close()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+# -- demo --------------------------------------------------------------------------------------------
+def _add_demo(commands: Any) -> None:
+    sub = commands.add_parser("demo", help="emulator + daemon as two processes with a live view (not yet)")
+    sub.add_argument("scenario", nargs="?", default="demo")
+    sub.set_defaults(handler=_cmd_demo)
+
+
+def _cmd_demo(args: argparse.Namespace) -> int:
+    del args
+    return _not_yet("demo")
+
+
+# -- bench -------------------------------------------------------------------------------------------
+def _add_bench(commands: Any) -> None:
+    sub = commands.add_parser("bench", help="simulation speed benchmark (not yet)")
+    sub.add_argument("--json", action="store_true")
+    sub.set_defaults(handler=_cmd_bench)
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    del args
+    return _not_yet("bench")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -63,6 +63,10 @@ class SensorState(str, Enum):
     DISCONNECTED = "disconnected"  # transport reports link loss
 
 
+_ALARM_STATES = frozenset({SensorState.STALE, SensorState.FROZEN, SensorState.REJECTED,
+                           SensorState.DISCONNECTED})
+
+
 @dataclass(frozen=True)
 class SensorConfig:
     """One position or heading reference.
@@ -126,6 +130,8 @@ class _SensorTrack:
     previous_residual: tuple[float, float] | None = None
     previous_residual2: tuple[float, float] | None = None
     filtered: tuple[float, float] | None = None  # low-passed accepted value for the median test
+    noisy: bool = False  # variance alarm raised
+    isolated_alarm: bool = False
     gst_sigma: float | None = None
     gst_t_s: float | None = None
     disconnected: bool = False
@@ -208,6 +214,7 @@ class SensorHub:
         self._last_update_t_s: float | None = None
         self._yaw_rate: float | None = None
         self.unknown_sources = 0
+        self._disagree = {"position": False, "heading": False}
 
     # ------------------------------------------------------------------ inputs
     def set_disconnected(self, name: str, disconnected: bool) -> None:
@@ -419,14 +426,19 @@ class SensorHub:
                 state = SensorState.ISOLATED
             else:
                 state = SensorState.OK
+            previous = track.state
             track.state = state
-            for alarm_state in (SensorState.STALE, SensorState.FROZEN, SensorState.REJECTED,
-                                SensorState.DISCONNECTED):
-                self.alarms.set(t_s, f"sensor.{name}.{alarm_state.value}", state is alarm_state, Severity.WARNING,
-                                f"{name}: {alarm_state.value} {track.detail}".strip())
-            self.alarms.set(t_s, f"sensor.{name}.noisy", self._noisy(track, state), Severity.WARNING,
-                            f"{name}: noise above {cfg.variance_alarm_factor:g}× nominal and the other references "
-                            "(variance test)")
+            if state is not previous:  # alarms change only with the state (no per-cycle text building)
+                for alarm_state in (previous, state):
+                    if alarm_state in _ALARM_STATES:
+                        self.alarms.set(t_s, f"sensor.{name}.{alarm_state.value}", state is alarm_state,
+                                        Severity.WARNING, f"{name}: {alarm_state.value} {track.detail}".strip())
+            noisy = self._noisy(track, state)
+            if noisy is not track.noisy:
+                track.noisy = noisy
+                self.alarms.set(t_s, f"sensor.{name}.noisy", noisy, Severity.WARNING,
+                                f"{name}: noise above {cfg.variance_alarm_factor:g}× nominal and the other "
+                                "references (variance test)")
 
     def _noisy(self, track: _SensorTrack, state: SensorState) -> bool:
         """Variance alarm: the measured noise exceeds ``variance_alarm_factor`` × both its nominal and the
@@ -460,8 +472,10 @@ class SensorHub:
         cfg = self.config
         kind = "heading" if heading else "position"
         limit = cfg.median_heading_limit_rad if heading else cfg.median_limit_m
-        if len(tracks) >= 3:
+        if len(tracks) >= 3 and self._disagree[kind]:
+            self._disagree[kind] = False
             self.alarms.clear(t_s, f"{kind}.disagree")
+        if len(tracks) >= 3:
             values = [t.filtered or t.accepted_value for t in tracks]
             if heading:
                 ref = values[0][0]
@@ -480,8 +494,11 @@ class SensorHub:
                     track.median_fail_since_t_s = None
                     if track.state is SensorState.ISOLATED:
                         track.state = SensorState.OK
-                self.alarms.set(t_s, f"sensor.{track.config.name}.isolated", track.state is SensorState.ISOLATED,
-                                Severity.WARNING, f"{track.config.name}: isolated by the median test")
+                isolated = track.state is SensorState.ISOLATED
+                if isolated is not track.isolated_alarm:
+                    track.isolated_alarm = isolated
+                    self.alarms.set(t_s, f"sensor.{track.config.name}.isolated", isolated, Severity.WARNING,
+                                    f"{track.config.name}: isolated by the median test")
         elif len(tracks) == 2:
             a, b = tracks
             distance = _distance(a.filtered or a.accepted_value, b.filtered or b.accepted_value, heading)
@@ -490,9 +507,12 @@ class SensorHub:
                 track.median_fail_since_t_s = None
                 if track.state is SensorState.ISOLATED:
                     track.state = SensorState.OK
-            self.alarms.set(t_s, f"{kind}.disagree", disagree, Severity.ALARM,
-                            f"two {kind} references disagree by {distance:.3g}; cannot isolate")
-        else:
+            if disagree is not self._disagree[kind]:
+                self._disagree[kind] = disagree
+                self.alarms.set(t_s, f"{kind}.disagree", disagree, Severity.ALARM,
+                                f"two {kind} references disagree by {distance:.3g}; cannot isolate")
+        elif self._disagree[kind]:
+            self._disagree[kind] = False
             self.alarms.clear(t_s, f"{kind}.disagree")
 
     # ------------------------------------------------------------------ fusion
