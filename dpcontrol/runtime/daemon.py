@@ -19,6 +19,7 @@ status, saves its state, closes the recorder and exits 0.
 from __future__ import annotations
 
 import collections
+import itertools
 import logging
 import math
 import re
@@ -35,17 +36,27 @@ from dpcontrol.runtime.alarms import AlarmRegistry, Severity
 from dpcontrol.runtime.config import DaemonConfig, TransportConfig, config_as_json
 from dpcontrol.runtime.inputs import SensorRouter
 from dpcontrol.runtime.persist import BackgroundSaver, StateStore
-from dpcontrol.runtime.recorder import Recorder, default_topics
+from dpcontrol.runtime.recorder import Recorder, TopicSpec, default_topics
 from dpcontrol.runtime.step import DpController, Mode, StepOutput
 from dpcontrol.runtime.thrusters import ThrusterFeedback
 from interfaces.messages import LinkStatus, Measurement, RejectedInput
 from interfaces.systemd import SystemdNotifier
 from interfaces.zenoh import schemas
 from interfaces.zenoh.node import LatestSlot, ZenohNode
+from interfaces.zenoh.schemas import SetpointRequest
 
 log = logging.getLogger(__name__)
 
 TIMING_WINDOW = 2048
+RUNTIME_TOPICS = (
+    TopicSpec("cycle", "dpcontrol.cycle",
+              "What one control step consumed: the raw-input sequence numbers of its measurements, link "
+              "changes, thruster feedback and operator requests (dpcontrol replay feeds exactly these).",
+              {"cycle": {"type": "integer"}, "inputs": {"type": "array"}, "links": {"type": "array"},
+               "feedback": {"type": "array"}, "requests": {"type": "array"}}),
+    TopicSpec("state_loaded", "dpcontrol.state", "Persisted state the daemon resumed from (bumpless restart).",
+              {"state": {"type": "object"}}),
+)
 ERROR_WINDOW_S = 10.0
 
 
@@ -72,6 +83,15 @@ class _TransportHealth:
         return (bad / len(events) if events else 0.0), bad
 
 
+def request_as_dict(request: SetpointRequest) -> dict[str, Any]:
+    """A setpoint request as a JSON-able mapping (recorded; :func:`request_from_dict` reverses it)."""
+    return {name: getattr(request, name) for name in request.__dataclass_fields__}
+
+
+def request_from_dict(data: dict[str, Any]) -> SetpointRequest:
+    return SetpointRequest(**data)
+
+
 class InputPump:
     """Starts the transport readers; collects routed measurements, rejects and link changes.
 
@@ -86,6 +106,10 @@ class InputPump:
         self.recorder = recorder
         self._queue: collections.deque[Any] = collections.deque()
         self._readers: list[Any] = []
+        # Every raw input gets a sequence number (recorded with it); each measurement carries the number
+        # of the raw input it came from, and every cycle records which it consumed: replay is exact.
+        self._counter = itertools.count(1)
+        self._last_raw_seq: dict[str, int] = {}
         self.health = {t.name: _TransportHealth() for t in config.transports}
         self._mav_pattern = re.compile(r"^mav:(\d+)/(\d+)/(.*)$")
         self._n2k_pattern = re.compile(r"^n2k:(\d+)$")
@@ -132,14 +156,15 @@ class InputPump:
     def _nmea_line(self, transport: str, line: Any) -> None:
         frame = line.frame
         ok = frame.rejected is None
+        seq = next(self._counter)
         self._queue.append(("health", transport, line.t_s, ok))
         if self.recorder is not None:
-            self.recorder.record_raw(transport, line.t_s, frame.raw,
-                                     rejected=None if ok else frame.rejected.reason, sentence=frame.sentence or None)
+            self.recorder.record_raw(transport, line.t_s, frame.raw, rejected=None if ok else frame.rejected.reason,
+                                     sentence=frame.sentence or None, seq=seq)
         for message in frame.messages:
             sensor = self.router.nmea0183(transport, frame.sentence, message)
             if sensor is not None:
-                self._queue.append(Measurement(line.t_s, sensor, message))
+                self._queue.append((seq, Measurement(line.t_s, sensor, message)))
 
     def _n2k_event(self, transport: str, event: Any) -> None:
         if isinstance(event, Measurement):
@@ -148,15 +173,18 @@ class InputPump:
             if match is not None:
                 sensor = self.router.nmea2000(transport, int(match.group(1)), event.message)
                 if sensor is not None:
-                    self._queue.append(Measurement(event.t_s, sensor, event.message))
+                    seq = self._last_raw_seq.get(transport, 0)
+                    self._queue.append((seq, Measurement(event.t_s, sensor, event.message)))
         elif isinstance(event, RejectedInput):
             self._queue.append(("health", transport, event.t_s, False))
             if self.recorder is not None:
                 self.recorder.record_raw(transport, event.t_s, event.rejected.raw, rejected=event.rejected.reason)
         elif isinstance(event, LinkStatus):
             self._queue.append(LinkStatus(event.t_s, transport, event.connected, event.detail))
-        elif self.recorder is not None:  # RawFrame
-            self.recorder.record_raw(transport, event.t_s, event.data, can_id=event.can_id)
+        elif self.recorder is not None:  # RawFrame: decoded right after, on this thread
+            seq = next(self._counter)
+            self._last_raw_seq[transport] = seq
+            self.recorder.record_raw(transport, event.t_s, event.data, can_id=event.can_id, seq=seq)
 
     def _mav_event(self, transport: str, event: Any) -> None:
         if isinstance(event, Measurement):
@@ -165,27 +193,32 @@ class InputPump:
             if match is not None:
                 sensor = self.router.mavlink(transport, int(match.group(1)), match.group(3), event.message)
                 if sensor is not None:
-                    self._queue.append(Measurement(event.t_s, sensor, event.message))
+                    seq = self._last_raw_seq.get(transport, 0)
+                    self._queue.append((seq, Measurement(event.t_s, sensor, event.message)))
         elif isinstance(event, RejectedInput):
             self._queue.append(("health", transport, event.t_s, False))
             if self.recorder is not None:
                 self.recorder.record_raw(transport, event.t_s, event.rejected.raw, rejected=event.rejected.reason)
         elif isinstance(event, LinkStatus):
             self._queue.append(LinkStatus(event.t_s, transport, event.connected, event.detail))
-        elif self.recorder is not None:  # RawPacket
-            self.recorder.record_raw(transport, event.t_s, event.data)
+        elif self.recorder is not None:  # RawPacket: decoded right after, on this thread
+            seq = next(self._counter)
+            self._last_raw_seq[transport] = seq
+            self.recorder.record_raw(transport, event.t_s, event.data, seq=seq)
 
     # ---------------------------------------------------------------- the loop side
-    def drain(self, measurements: list[Measurement], links: list[LinkStatus]) -> None:
-        """Move everything received since the last call into the two lists (in arrival order)."""
+    def drain(self, measurements: list[Measurement], links: list[LinkStatus], sources: list[int]) -> None:
+        """Move everything received since the last call into the lists (in arrival order); ``sources``
+        gets the raw-input sequence number of each measurement."""
         queue = self._queue
         health = self.health
         while queue:
             item = queue.popleft()
-            if isinstance(item, Measurement):
-                measurements.append(item)
-            elif isinstance(item, LinkStatus):
+            if isinstance(item, LinkStatus):
                 links.append(item)
+            elif len(item) == 2:
+                sources.append(item[0])
+                measurements.append(item[1])
             else:
                 _, transport, t_s, ok = item
                 health[transport].add(t_s, ok)
@@ -280,7 +313,8 @@ class Daemon:
     def _open(self) -> None:
         cfg = self.config
         if cfg.recorder.path is not None:
-            self.recorder = Recorder(cfg.recorder, topics=default_topics([t.name for t in cfg.transports]),
+            self.recorder = Recorder(cfg.recorder, topics=default_topics([t.name for t in cfg.transports],
+                                                                         extra=RUNTIME_TOPICS),
                                      config={"vessel_id": cfg.vessel_id, "config_sha256": cfg.config_hash,
                                              "text": cfg.source_text},
                                      on_error=lambda error: log.error("recorder: %s", error))
@@ -314,8 +348,11 @@ class Daemon:
             log.info("cold start (persisted state %s)", self.state_detail)
             return
         try:
-            self.controller.load_state_dict(result.state, self.clock())
+            t_s = self.clock()
+            self.controller.load_state_dict(result.state, t_s)
             self.resumed_from_state = True
+            if self.recorder is not None:
+                self.recorder.record("state_loaded", t_s, {"t_s": t_s, "state": result.state})
             log.info("resumed from persisted state (age %.1f s, mode %s)", result.age_s or 0.0,
                      self.controller.mode.value)
         except (KeyError, ValueError, TypeError) as error:
@@ -387,7 +424,8 @@ class Daemon:
     # ---------------------------------------------------------------- one cycle
     def _cycle(self, t_s: float, measurements: list[Measurement], links: list[LinkStatus]) -> tuple[StepOutput, float]:
         assert self.pump is not None and self.node is not None
-        self.pump.drain(measurements, links)
+        sources: list[int] = []
+        self.pump.drain(measurements, links, sources)
         for status in links:
             for sensor in self.pump.router.sensors_on(status.source):
                 self.controller.hub.set_disconnected(sensor, not status.connected)
@@ -410,6 +448,12 @@ class Daemon:
                 if item.thrust_n is not None and item.azimuth_rad is not None:
                     feedback.append(ThrusterFeedback(item.name, item.thrust_n, item.azimuth_rad, item.ready,
                                                      latest.rx_t_s))
+        if self.recorder is not None:  # exactly what this step consumed (dpcontrol replay reproduces it)
+            self.recorder.record("cycle", t_s, {
+                "t_s": t_s, "cycle": self._seq, "inputs": sources,
+                "links": [[status.source, status.connected, status.detail] for status in links],
+                "feedback": [[f.name, f.thrust_n, f.azimuth_rad, f.ready, f.t_s] for f in feedback],
+                "requests": [request_as_dict(r) for r in requests]})
         out = self.controller.step(t_s, measurements, feedback, requests)
         seq = self._seq
         self._seq += 1
@@ -419,7 +463,7 @@ class Daemon:
         published = self.clock()
         self._publish_rest(t_s, seq, out)
         self._error_rate_alarms(t_s)
-        self._record(t_s, out)
+        self._record(t_s, out, seq)
         self._persist(t_s)
         return out, published
 
@@ -472,7 +516,7 @@ class Daemon:
             self.alarms.set(t_s, f"transport.{name}.error_rate", rate > limit and bad >= 5, Severity.WARNING,
                             f"{name}: {100 * rate:.0f} % of the inputs rejected in the last {ERROR_WINDOW_S:g} s")
 
-    def _record(self, t_s: float, out: StepOutput) -> None:
+    def _record(self, t_s: float, out: StepOutput, seq: int) -> None:
         recorder = self.recorder
         if recorder is None:
             return
@@ -493,7 +537,7 @@ class Daemon:
                                          "setpoint_n": out.setpoint_n.tolist()})
         recorder.record("allocation", t_s, {"t_s": t_s, "tau_achieved_b": out.tau_achieved_b.tolist(),
                                             "shortfall_b": out.shortfall_b.tolist()})
-        recorder.record("command", t_s, {"t_s": t_s, "mode": out.mode.value, "names": self._names,
+        recorder.record("command", t_s, {"t_s": t_s, "cycle": seq, "mode": out.mode.value, "names": self._names,
                                          "thrust_n": out.thrust_n.tolist(), "azimuth_rad": out.azimuth_rad.tolist(),
                                          "enabled": out.enabled.tolist()})
         for previous, new, reason in out.mode_changes:
