@@ -1,0 +1,121 @@
+"""``sim-plant`` command line: the sub-commands, configuration errors, and ``sim-plant hil`` as a
+process under a stand-in for systemd (READY, WATCHDOG from the loop, SIGTERM → clean exit 0)."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+from sim_plant.cli import main
+
+ROOT = Path(__file__).resolve().parents[2]
+START_TIMEOUT_S = 60.0  # a cold interpreter importing zenoh, scipy, python-can on a loaded 2-core machine
+
+
+def _files(tmp_path: Path, rig: Any) -> tuple[Path, Path, Path]:
+    port = tmp_path / "ttyGNSS"
+    controller = rig.write_yaml(tmp_path / "vessel.yaml", {
+        "vessel_id": "cli",
+        "transports": [{"name": "serial0", "protocol": "nmea0183", "port": str(port)}],
+        "sensors": [{"name": "gnss1", "kind": "position", "transport": "serial0"},
+                    {"name": "gyro1", "kind": "heading", "transport": "serial0"}],
+        "zenoh": {"listen": [f"tcp/127.0.0.1:{rig.free_port()}"]},   # nobody there: retried in the background
+    })
+    scenario = rig.write_yaml(tmp_path / "scenario.yaml", {"name": "cli", "vessel": "cybership2", "duration_s": 600})
+    return scenario, controller, port
+
+
+@pytest.mark.parametrize("command", ["run", "demo", "bench"])
+def test_placeholder_commands_say_not_yet(command: str, capsys: pytest.CaptureFixture[str]) -> None:
+    argv = [command] if command != "run" else [command, "scenario.yaml"]
+    assert main(argv) == 2
+    assert "not yet" in capsys.readouterr().err
+
+
+def test_no_command_prints_help(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main([]) == 2
+    assert "hil" in capsys.readouterr().err
+
+
+def test_configuration_errors_exit_2_naming_the_file(tmp_path: Path, rig: Any,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    scenario, controller, _ = _files(tmp_path, rig)
+    assert main(["hil", str(scenario), "--controller-config", str(tmp_path / "nope.yaml")]) == 2
+    assert "nope.yaml" in capsys.readouterr().err
+    bad = rig.write_yaml(tmp_path / "bad.yaml", {**yaml.safe_load(controller.read_text()), "vessel_id": "a b"})
+    assert main(["hil", str(scenario), "--controller-config", str(bad)]) == 2
+    assert "bad.yaml: vessel_id: expected" in capsys.readouterr().err
+    assert main(["hil", "no-such-builtin", "--controller-config", str(controller)]) == 2
+    assert "unknown built-in scenario 'no-such-builtin'" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as usage:
+        main(["hil", str(scenario), "--controller-config", str(controller), "--speed", "-1"])
+    assert usage.value.code == 2
+
+
+def test_a_link_that_cannot_open_exits_1(tmp_path: Path, rig: Any, capsys: pytest.CaptureFixture[str]) -> None:
+    scenario, controller, port = _files(tmp_path, rig)
+    port.write_text("a real file where the daemon's port should be")
+    assert main(["hil", str(scenario), "--controller-config", str(controller)]) == 1
+    assert "not a symlink" in capsys.readouterr().err
+    assert port.read_text().startswith("a real file")
+
+
+def _receive(sock: socket.socket, wanted: bytes, deadline: float) -> list[bytes]:
+    """Notifications until one contains ``wanted`` (all of them returned), or fail at the deadline."""
+    got = []
+    while (remaining := deadline - time.monotonic()) > 0:
+        sock.settimeout(remaining)
+        try:
+            message = sock.recv(4096)
+        except TimeoutError:
+            break
+        got.append(message)
+        if wanted in message:
+            return got
+    pytest.fail(f"no {wanted!r} notification; got {got!r}")
+
+
+@pytest.mark.skipif(os.name != "posix", reason="systemd notification and signals")
+def test_hil_process_notifies_systemd_and_stops_cleanly_on_sigterm(tmp_path: Path, rig: Any) -> None:
+    scenario, controller, port = _files(tmp_path, rig)
+    out = tmp_path / "out"
+    notify_path = tmp_path / "notify.sock"
+    with socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as sock:
+        sock.bind(str(notify_path))
+        env = {**os.environ, "NOTIFY_SOCKET": str(notify_path), "WATCHDOG_USEC": "300000",
+               "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+        env.pop("WATCHDOG_PID", None)
+        process = subprocess.Popen(
+            [sys.executable, "-m", "sim_plant.cli", "--log-level", "WARNING", "hil", str(scenario),
+             "--controller-config", str(controller), "--out", str(out)],
+            cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        try:
+            _receive(sock, b"READY=1", time.monotonic() + START_TIMEOUT_S)
+            assert port.is_symlink()  # links are up when READY is sent
+            watchdog = _receive(sock, b"WATCHDOG=1", time.monotonic() + 5.0)
+            watchdog += _receive(sock, b"WATCHDOG=1", time.monotonic() + 5.0)
+            assert sum(b"WATCHDOG=1" in m for m in watchdog) >= 2
+            process.send_signal(signal.SIGTERM)
+            stdout, stderr = process.communicate(timeout=30.0)
+            stopping = _receive(sock, b"STOPPING=1", time.monotonic() + 5.0)
+        finally:
+            if process.poll() is None:
+                process.kill()
+                process.communicate(timeout=30.0)
+    assert process.returncode == 0, stderr.decode(errors="replace")
+    assert any(b"STOPPING=1" in m for m in stopping)
+    assert b"gnss1 (gnss, 5 Hz) -> nmea0183 serial0 " + str(port).encode() in stdout
+    summary = json.loads((out / "hil_summary.json").read_text())
+    assert summary["stopped_by"] == "signal SIGTERM"
+    assert 0.0 < summary["duration_s"] < 600.0
+    assert (out / "truth.csv").exists() and not port.exists()
