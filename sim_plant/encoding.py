@@ -58,11 +58,15 @@ class NmeaSensorEncoder:
         Sentence types to send (defaults above).
     """
 
-    def __init__(self, kind: str, talker: str | None = None, sentences: Sequence[str] = ()) -> None:
-        gnss = kind == "gnss"
+    def __init__(self, kind: str, talker: str | None = None, sentences: Sequence[str] = (), *,
+                 rate_of_turn: bool = True) -> None:
+        gnss = kind in ("gnss", "position")
         self.talker = talker or ("GP" if gnss else "HE")
         self.gns_talker = talker or "GN"  # GNS is a multi-constellation sentence
-        self.sentences = tuple(sentences) or (DEFAULT_POSITION_SENTENCES if gnss else DEFAULT_HEADING_SENTENCES)
+        applicable = POSITION_SENTENCES if gnss else HEADING_SENTENCES
+        chosen = tuple(x for x in sentences if x in applicable)
+        self.sentences = chosen or (DEFAULT_POSITION_SENTENCES if gnss else DEFAULT_HEADING_SENTENCES)
+        self.rate_of_turn = rate_of_turn  # a gyro that also sends its rate flags it invalid with the heading
         self.counters: Counter[str] = Counter()
 
     def encode(self, messages: Sequence[Message]) -> list[bytes]:
@@ -103,7 +107,7 @@ class NmeaSensorEncoder:
         out = []
         if "THS" in wanted or "HDT" not in wanted:  # HDT has no validity field: say it with THS V
             out.append(encode_ths(Heading(fix.heading_rad or 0.0), talker, mode="V"))
-        if "ROT" in wanted:
+        if "ROT" in wanted and self.rate_of_turn:
             out.append(encode_rot(RateOfTurn(0.0), talker, valid=False))
         return out
 
@@ -111,9 +115,10 @@ class NmeaSensorEncoder:
 class N2kSensorEncoder:
     """NMEA 2000 frames ``(can_id, data)`` of one sensor at its source address."""
 
-    def __init__(self, source_address: int) -> None:
+    def __init__(self, source_address: int, *, rate_of_turn: bool = True) -> None:
         self.encoder = N2kEncoder(source_address)
         self.source_address = source_address
+        self.rate_of_turn = rate_of_turn
         self.sid = 0
         self.counters: Counter[str] = Counter()
 
@@ -135,16 +140,22 @@ class N2kSensorEncoder:
                     frames += encoder.gnss_position(None, date_days=DATE_DAYS_SINCE_1970, sid=sid)
                 else:
                     frames += encoder.heading(None, sid=sid)
+                    if self.rate_of_turn:
+                        frames += encoder.rate_of_turn(None, sid=sid)
             else:  # GST statistics have no PGN here
                 self.counters["not_carried"] += 1
         return frames
 
 
 class MavlinkSensorEncoder:
-    """MAVLink 2 packets of one sensor, as a boat autopilot of ``system_id`` sends them."""
+    """MAVLink 2 packets of one sensor, as a boat autopilot of ``system_id`` sends them.
 
-    def __init__(self, system_id: int = 1, component_id: int = 1, signing_key: bytes | None = None) -> None:
-        self.encoder = MavlinkEncoder(system_id, component_id, signing_key=signing_key)
+    ``encoder`` shares an autopilot's encoder (its packet sequence numbers) between its sensors.
+    """
+
+    def __init__(self, system_id: int = 1, component_id: int = 1, signing_key: bytes | None = None, *,
+                 encoder: MavlinkEncoder | None = None) -> None:
+        self.encoder = encoder or MavlinkEncoder(system_id, component_id, signing_key=signing_key)
         self.counters: Counter[str] = Counter()
 
     def encode(self, t_s: float, messages: Sequence[Message]) -> list[bytes]:

@@ -41,14 +41,13 @@ import yaml
 from dpcontrol.models.schema import ConfigError, Section, join
 from interfaces.zenoh.config import check_endpoint
 from interfaces.zenoh.keys import validate_vessel_id
+from sim_plant.encoding import HEADING_SENTENCES, POSITION_SENTENCES
 from sim_plant.scenario import Scenario
 from sim_plant.sensors import SensorSpec
 
 KINDS: tuple[str, ...] = ("position", "heading")
 SENSOR_KIND_OF: dict[str, str] = {"gnss": "position", "gyro": "heading"}
 PROTOCOLS: tuple[str, ...] = ("nmea0183", "nmea2000", "mavlink")
-POSITION_SENTENCES: tuple[str, ...] = ("GGA", "GNS", "RMC", "GST")
-HEADING_SENTENCES: tuple[str, ...] = ("HDT", "THS", "ROT")
 SENTENCES: tuple[str, ...] = POSITION_SENTENCES + HEADING_SENTENCES  # what the daemon accepts in ``sentences``
 MAX_N2K_SENDER_ADDRESS = 251  # 252/253 are "no address"/"null", a sensor cannot send from them
 _TALKER_RE = re.compile(r"[A-Z0-9]{2}")

@@ -57,21 +57,12 @@ import numpy as np
 
 from interfaces.mavlink.codec import MavlinkEncoder
 from interfaces.mavlink.transport import MavlinkUdpSender
-from interfaces.messages import Attitude, Heading, PositionErrorStats, PositionFix, RateOfTurn, SensorMessage
+from interfaces.messages import PositionFix, SensorMessage
 from interfaces.nmea0183 import (
     PtyPair,
-    encode_gga,
-    encode_gga_no_fix,
-    encode_gns,
-    encode_gst,
-    encode_hdt,
-    encode_rmc,
-    encode_rmc_no_fix,
-    encode_rot,
-    encode_ths,
 )
-from interfaces.nmea2000.codec import N2kEncoder
 from interfaces.nmea2000.transport import CanBusConfig, N2kCanWriter, RemoteServerHandle, start_remote_server
+from sim_plant.encoding import DATE_DAYS_SINCE_1970, MavlinkSensorEncoder, N2kSensorEncoder, NmeaSensorEncoder
 from sim_plant.hil_config import (
     HEADING_SENTENCES,
     POSITION_SENTENCES,
@@ -90,10 +81,6 @@ Message = SensorMessage | InvalidFix
 
 # The emulated calendar day, 2024-01-01 (UTC): the same day MavlinkEncoder assumes by default, so
 # RMC, PGN 129029 and GPS_RAW_INT agree. Sensor times are seconds of that day.
-DATE_DDMMYY = "010124"
-DATE_DAYS_SINCE_1970 = 19723
-DEFAULT_POSITION_SENTENCES: tuple[str, ...] = ("GGA", "GST")
-DEFAULT_HEADING_SENTENCES: tuple[str, ...] = ("THS", "ROT")
 FIRST_AUTO_N2K_ADDRESS = 100
 MAX_BACKLOG_BYTES = 2048
 MAX_PENDING_BYTES = 8192
@@ -115,14 +102,10 @@ class SensorChannel:
     kind: str  # "position" | "heading"
     counters: Counter[str] = field(default_factory=Counter)
     last: list[SensorMessage] = field(default_factory=list)  # latest valid messages (burst templates)
-    talker: str = ""
-    gns_talker: str = ""
-    sentences: tuple[str, ...] = ()
     source_address: int = -1
-    encoder: N2kEncoder | None = None
     system_id: int = 0
-    sid: int = 0  # NMEA 2000 sequence id tying the PGNs of one sample together
     rate_of_turn: bool = False  # a gyro that also sends its rate of turn (flagged invalid with the heading)
+    coder: Any = None  # the sensor's encoder (sim_plant.encoding): the same bytes as in lockstep
 
 
 class Link:
@@ -289,56 +272,15 @@ class SerialLink(Link):
     def _configure(self, channel: SensorChannel, wire: Wire) -> None:
         position = channel.kind == "position"
         applicable = POSITION_SENTENCES if position else HEADING_SENTENCES
-        chosen = tuple(s for s in wire.sensor.sentences if s in applicable)
-        if wire.sensor.sentences and not chosen:
+        if wire.sensor.sentences and not any(x in applicable for x in wire.sensor.sentences):
             log.warning("%s: sensor %s lists no %s sentence (%s): sending the defaults", self.name, channel.name,
                         channel.kind, ", ".join(wire.sensor.sentences))
-        channel.sentences = chosen or (DEFAULT_POSITION_SENTENCES if position else DEFAULT_HEADING_SENTENCES)
-        channel.talker = wire.sensor.talker or ("GP" if position else "HE")
-        channel.gns_talker = wire.sensor.talker or "GN"  # GNS is a multi-constellation sentence
+        channel.coder = NmeaSensorEncoder(channel.kind, wire.sensor.talker, wire.sensor.sentences,
+                                          rate_of_turn=channel.rate_of_turn)
 
     def encode(self, channel: SensorChannel, messages: Sequence[Message]) -> list[bytes]:
-        """The sentences of one sample group (see the module docstring)."""
-        talker, wanted = channel.talker, channel.sentences
-        out: list[bytes] = []
-        for m in messages:
-            if isinstance(m, PositionFix):
-                if "GGA" in wanted:
-                    out.append(encode_gga(m, talker))
-                if "GNS" in wanted:
-                    out.append(encode_gns(m, channel.gns_talker))
-                if "RMC" in wanted:
-                    out.append(encode_rmc(m, talker=talker, date_ddmmyy=DATE_DDMMYY))
-            elif isinstance(m, PositionErrorStats):
-                if "GST" in wanted:
-                    out.append(encode_gst(m, talker))
-            elif isinstance(m, Heading):
-                if "THS" in wanted:
-                    out.append(encode_ths(m, talker))
-                if "HDT" in wanted:
-                    out.append(encode_hdt(m, talker))
-            elif isinstance(m, RateOfTurn):
-                if "ROT" in wanted:
-                    out.append(encode_rot(m, talker))
-            elif isinstance(m, InvalidFix):
-                out.extend(self._invalid(channel, m))
-        return out
-
-    @staticmethod
-    def _invalid(channel: SensorChannel, fix: InvalidFix) -> list[bytes]:
-        talker, wanted = channel.talker, channel.sentences
-        if fix.kind == "position":
-            # GNS has no "no fix" form among our encoders: a receiver configured for GNS says it in GGA
-            out = [encode_gga_no_fix(talker, fix.utc_time_s)]
-            if "RMC" in wanted:
-                out.append(encode_rmc_no_fix(talker, fix.utc_time_s, DATE_DDMMYY))
-            return out
-        out = []
-        if "THS" in wanted or "HDT" not in wanted:  # HDT has no validity field: an HDT-only gyro goes silent
-            out.append(encode_ths(Heading(fix.heading_rad or 0.0), talker, mode="V"))
-        if "ROT" in wanted and channel.rate_of_turn:
-            out.append(encode_rot(RateOfTurn(0.0), talker, valid=False))
-        return out
+        """The sentences of one sample group (see :mod:`sim_plant.encoding`)."""
+        return channel.coder.encode(messages)
 
     def _send(self, channel: SensorChannel, t_s: float, messages: Sequence[Message]) -> int:
         sentences = self.encode(channel, messages)
@@ -503,35 +445,16 @@ class N2kLink(Link):
                 address += 1
         self._addresses.add(address)
         channel.source_address = address
-        channel.encoder = N2kEncoder(address)
+        channel.coder = N2kSensorEncoder(address, rate_of_turn=channel.rate_of_turn)
 
     def reserve(self, addresses: Sequence[int]) -> None:
         """Addresses the controller configures for sensors on this bus: never auto-assigned to another."""
         self._addresses.update(addresses)
 
     def encode(self, channel: SensorChannel, messages: Sequence[Message]) -> list[tuple[int, bytes]]:
-        """The CAN frames of one sample group."""
-        encoder = channel.encoder
-        assert encoder is not None
-        sid = channel.sid
-        channel.sid = (sid + 1) % 250  # 0..250; 251+ are "not available"/reserved
-        frames: list[tuple[int, bytes]] = []
-        for m in messages:
-            if isinstance(m, PositionFix):
-                frames += encoder.gnss_position(m, date_days=DATE_DAYS_SINCE_1970, sid=sid)
-            elif isinstance(m, Heading):
-                frames += encoder.heading(m, sid=sid)
-            elif isinstance(m, RateOfTurn):
-                frames += encoder.rate_of_turn(m, sid=sid)
-            elif isinstance(m, InvalidFix):
-                if m.kind == "position":
-                    frames += encoder.gnss_position(None, date_days=DATE_DAYS_SINCE_1970, sid=sid)
-                else:
-                    frames += encoder.heading(None, sid=sid)
-                    if channel.rate_of_turn:
-                        frames += encoder.rate_of_turn(None, sid=sid)
-            else:  # GST statistics have no PGN here
-                channel.counters["not_carried"] += 1
+        """The CAN frames of one sample group (see :mod:`sim_plant.encoding`)."""
+        frames = channel.coder.encode(messages)
+        channel.counters["not_carried"] = channel.coder.counters["not_carried"]
         return frames
 
     def _send(self, channel: SensorChannel, t_s: float, messages: Sequence[Message]) -> int:
@@ -551,8 +474,7 @@ class N2kLink(Link):
         return sent
 
     def _burst(self, channel: SensorChannel, t_s: float, count: int, rng: np.random.Generator) -> int:
-        encoder = channel.encoder
-        assert encoder is not None
+        encoder = channel.coder.encoder
         fast: list[list[tuple[int, bytes]]] = []
         fix = next((m for m in channel.last if isinstance(m, PositionFix)), None)
         if channel.kind == "position" and fix is not None:
@@ -627,29 +549,13 @@ class MavlinkLink(Link):
 
     def _configure(self, channel: SensorChannel, wire: Wire) -> None:
         channel.system_id = wire.sensor.system_id or 1
-        self._sender(channel.system_id)
+        channel.coder = MavlinkSensorEncoder(encoder=self._sender(channel.system_id).encoder)
 
     def encode(self, channel: SensorChannel, t_s: float, messages: Sequence[Message]) -> list[bytes]:
-        """The MAVLink packets of one sample group (a heading and its rate go in one ATTITUDE)."""
-        encoder = self._senders[channel.system_id].encoder
-        boot_ms = int(t_s * 1000.0) % (1 << 32)
-        heading = next((m for m in messages if isinstance(m, Heading)), None)
-        rate = next((m for m in messages if isinstance(m, RateOfTurn)), None)
-        out: list[bytes] = []
-        for m in messages:
-            if isinstance(m, PositionFix):
-                out.append(encoder.gps_raw_int(m))
-            elif isinstance(m, InvalidFix):
-                if m.kind == "position":
-                    out.append(encoder.gps_raw_int(None, fix_type=0))
-                else:
-                    out.append(encoder.attitude(None, time_boot_ms=boot_ms))
-            elif isinstance(m, PositionErrorStats):
-                channel.counters["not_carried"] += 1
-        if heading is not None or rate is not None:
-            yaw = None if heading is None else heading.heading_rad
-            out.append(encoder.attitude(Attitude(None, None, yaw), rate=rate, time_boot_ms=boot_ms))
-        return out
+        """The MAVLink packets of one sample group (see :mod:`sim_plant.encoding`)."""
+        packets = channel.coder.encode(t_s, messages)
+        channel.counters["not_carried"] = channel.coder.counters["not_carried"]
+        return packets
 
     def _send(self, channel: SensorChannel, t_s: float, messages: Sequence[Message]) -> int:
         return self._send_packets(channel, t_s, self.encode(channel, t_s, messages))
