@@ -39,9 +39,8 @@ from typing import Any
 
 import numpy as np
 
-from dpcontrol.runtime.config import RecorderSettings
 from dpcontrol.runtime.persist import BackgroundSaver, StateStore
-from dpcontrol.runtime.recorder import Recorder, list_log_files
+from interfaces.recorder import Recorder, RecorderSettings, list_log_files
 
 RATE_HZ = 10.0
 THRUSTERS = ("bow1", "bow2", "azi_ps", "azi_sb")

@@ -1,4 +1,4 @@
-"""Reading and exporting black-box recordings (the MCAP files of :mod:`dpcontrol.runtime.recorder`).
+"""Reading and exporting black-box recordings (the MCAP files of :mod:`interfaces.recorder`).
 
 Used by ``dpcontrol log export LOG --csv DIR`` and ``dpcontrol replay``:
 
@@ -33,7 +33,7 @@ from mcap.exceptions import McapError
 from mcap.records import Channel, Chunk, DataEnd, Footer, Message
 from mcap.stream_reader import StreamReader, breakup_chunk
 
-from dpcontrol.runtime.recorder import list_log_files
+from interfaces.recorder import list_log_files
 
 logger = logging.getLogger(__name__)
 

@@ -50,7 +50,7 @@ commands, liveliness events, setpoints, engage result, faults, CPU, notes).
 
 Recorder hook
 -------------
-``record(topic, t_s, payload)`` — the signature of :meth:`dpcontrol.runtime.recorder.Recorder.record`,
+``record(topic, t_s, payload)`` — the signature of :meth:`interfaces.recorder.Recorder.record`,
 which a composition layer allowed to import the controller (``sim_plant.bench``) can pass in; the
 plant never imports it — is called with plant time for every raw sensor output
 (``raw/<transport>``: ``{"data", "source", "transport"[, "can_id"][, "fault"]}`` per NMEA sentence,

@@ -25,6 +25,7 @@ from dpcontrol.guidance import ReferenceModelConfig, reference_config_from_mappi
 from dpcontrol.models.schema import ConfigError, Section, parse_list
 from dpcontrol.models.vessels import VesselData, vessel_from_config
 from dpcontrol.runtime.hub import HubConfig, SensorConfig, SensorKind
+from interfaces.recorder import RecorderSettings
 from interfaces.zenoh.config import ZenohConfig
 
 PROTOCOLS = ("nmea0183", "nmea2000", "mavlink")
@@ -99,18 +100,6 @@ class ThrusterMonitorSettings:
     mismatch_persist_s: float = 5.0
     shortfall_fraction: float = 0.1
     shortfall_persist_s: float = 10.0
-
-
-@dataclass(frozen=True)
-class RecorderSettings:
-    """Black-box recorder (issue 9)."""
-
-    path: str | None = None
-    max_file_mb: float = 256.0
-    max_total_mb: float = 4096.0
-    rotate_s: float = 3600.0
-    flush_s: float = 1.0
-    queue_size: int = 10000
 
 
 @dataclass(frozen=True)

@@ -36,10 +36,10 @@ from dpcontrol.runtime.alarms import AlarmRegistry, Severity
 from dpcontrol.runtime.config import DaemonConfig, TransportConfig, config_as_json
 from dpcontrol.runtime.inputs import SensorRouter
 from dpcontrol.runtime.persist import BackgroundSaver, StateStore
-from dpcontrol.runtime.recorder import Recorder, TopicSpec, default_topics
 from dpcontrol.runtime.step import DpController, Mode, StepOutput
 from dpcontrol.runtime.thrusters import ThrusterFeedback
 from interfaces.messages import LinkStatus, Measurement, RejectedInput
+from interfaces.recorder import Recorder, TopicSpec, default_topics
 from interfaces.systemd import SystemdNotifier
 from interfaces.zenoh import schemas
 from interfaces.zenoh.node import LatestSlot, ZenohNode

@@ -44,7 +44,7 @@ from typing import TYPE_CHECKING, Any
 
 import orjson
 
-from dpcontrol.runtime.recorder import json_default
+from interfaces.recorder import json_default
 
 if TYPE_CHECKING:
     from dpcontrol.runtime.config import StateSettings

@@ -185,7 +185,7 @@ def test_dropout_marks_stale_and_position_is_lost() -> None:
 
 
 def test_heading_offset_with_two_gyros_is_rejected_without_a_transient() -> None:
-    hub, alarms = _hub(n_heading=2)
+    hub, _ = _hub(n_heading=2)
     scene = Scene(hub)
     scene.step(50)
     before = scene.outputs[-1][2]

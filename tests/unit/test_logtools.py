@@ -14,8 +14,7 @@ from hypothesis import strategies as st
 from mcap.reader import make_reader
 
 from dpcontrol.logtools import export_csv, flatten, read_config, read_records
-from dpcontrol.runtime.config import RecorderSettings
-from dpcontrol.runtime.recorder import Recorder, list_log_files
+from interfaces.recorder import Recorder, RecorderSettings, list_log_files
 
 T0_NS = 1_700_000_000_000_000_000
 CONFIG = {"vessel_id": "cs2", "config_sha256": "cd" * 32, "config": {"loop": {"rate_hz": 10.0}}}

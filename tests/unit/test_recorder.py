@@ -19,11 +19,11 @@ from mcap.reader import make_reader
 from mcap.records import Chunk, Message
 from mcap.stream_reader import breakup_chunk
 
-import dpcontrol.runtime.recorder as recorder_module
+import interfaces.recorder as recorder_module
 from dpcontrol.logtools import read_records
-from dpcontrol.runtime.config import RecorderSettings
-from dpcontrol.runtime.recorder import (
+from interfaces.recorder import (
     Recorder,
+    RecorderSettings,
     TopicSpec,
     default_topics,
     list_log_files,

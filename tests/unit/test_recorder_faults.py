@@ -15,10 +15,9 @@ from pathlib import Path
 
 import pytest
 
-import dpcontrol.runtime.recorder as recorder_module
+import interfaces.recorder as recorder_module
 from dpcontrol.logtools import read_records
-from dpcontrol.runtime.config import RecorderSettings
-from dpcontrol.runtime.recorder import Recorder, list_log_files
+from interfaces.recorder import Recorder, RecorderSettings, list_log_files
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -193,8 +192,8 @@ def test_disk_full_mid_file_keeps_what_was_flushed_and_resumes_in_a_new_file(
 
 CHILD = textwrap.dedent("""
     import sys, time
-    from dpcontrol.runtime.config import RecorderSettings
-    from dpcontrol.runtime.recorder import Recorder
+    from interfaces.recorder import RecorderSettings
+    from interfaces.recorder import Recorder
 
     rec = Recorder(RecorderSettings(path=sys.argv[1], flush_s=1.0))
     assert rec.wait_ready(30.0)

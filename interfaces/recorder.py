@@ -79,15 +79,25 @@ import time
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, TYPE_CHECKING, Any
+from typing import IO, Any
 
 import orjson
 from mcap.writer import CompressionType, IndexType, Writer
 
-if TYPE_CHECKING:
-    from dpcontrol.runtime.config import RecorderSettings
-
 logger = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class RecorderSettings:
+    """Black-box recorder settings (issue 9): ``path`` is a directory (None: recording off); sizes in
+    MB (10⁶ bytes); ``flush_s`` ≤ 1 bounds what a SIGKILL loses."""
+
+    path: str | None = None
+    max_file_mb: float = 256.0
+    max_total_mb: float = 4096.0
+    rotate_s: float = 3600.0
+    flush_s: float = 1.0
+    queue_size: int = 10000
 
 __all__ = [
     "FILE_PATTERN",
