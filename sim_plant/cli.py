@@ -1,8 +1,11 @@
 """``sim-plant`` command line (composition layer): one function per sub-command.
 
-``sim-plant hil SCENARIO --controller-config FILE [--out DIR] [--speed 1.0] [--engage] [--duration S]``
-runs the real-time emulator (:mod:`sim_plant.emulator`) for a separately started
-``dpcontrol run --config FILE``. ``run``, ``demo`` and ``bench`` are placeholders for now.
+* ``sim-plant run SCENARIO --out DIR``: lockstep closed loop, plant + the real controller step in one
+  process (:mod:`sim_plant.bench.run`); timeseries.csv, summary.json, plots.
+* ``sim-plant hil SCENARIO --controller-config FILE [--out DIR] [--speed 1.0] [--engage] [--duration S]``:
+  the real-time emulator (:mod:`sim_plant.emulator`) for a separately started ``dpcontrol run --config FILE``.
+* ``sim-plant demo``: emulator + daemon as two processes over all four transports, live view, report.
+* ``sim-plant bench [--json]``: simulation speed (seed 003 12 h, seed 000).
 
 Exit status: 0 after a clean end (duration reached, SIGTERM or SIGINT), 1 when the emulator fails
 at run time (a link that cannot be opened, an error in the loop), 2 for a usage or configuration
@@ -13,11 +16,16 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
 import signal
 import sys
 from pathlib import Path
 from types import FrameType
 from typing import Any
+
+# Small matrices only: a threaded BLAS costs ~100x per LAPACK call on a loaded 2-core machine.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 EXIT_OK, EXIT_FAILURE, EXIT_USAGE = 0, 1, 2
 
@@ -56,15 +64,65 @@ def _not_yet(name: str) -> int:
 
 # -- run ---------------------------------------------------------------------------------------------
 def _add_run(commands: Any) -> None:
-    sub = commands.add_parser("run", help="lockstep closed-loop simulation (not yet)")
-    sub.add_argument("scenario")
-    sub.add_argument("--out", type=Path)
+    sub = commands.add_parser("run", help="lockstep closed-loop simulation: plant + controller in one process")
+    sub.add_argument("scenario", help="scenario YAML file or built-in name (cs2-seed000, supply-seed001, ...)")
+    sub.add_argument("--out", type=Path, required=True, help="output directory (timeseries.csv, summary.json, PNGs)")
+    sub.add_argument("--controller-config", type=Path, default=None,
+                     help="controller configuration (its estimator, control, guidance, ...; sensors by name)")
+    sub.add_argument("--estimator", choices=("mmae", "kf", "rpem", "raw", "kalman_bucy", "heading_kf"),
+                     help="override the estimator kind")
+    sub.add_argument("--control", choices=("pid", "mrac", "mrac-fixed", "autopilot"),
+                     help="override the controller kind (mrac-fixed: MRAC structure with adaptation off)")
+    sub.add_argument("--override", action="append", default=[], metavar="YAML",
+                     help="controller config sections to override, e.g. '{estimator: {kind: kf, omega_rad_s: 0.9}}'")
+    sub.add_argument("--duration", type=_positive, default=None, help="stop after this many simulated seconds")
+    sub.add_argument("--no-plots", action="store_true")
+    sub.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                     help="progress bar (default: when stderr is a terminal)")
     sub.set_defaults(handler=_cmd_run)
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    del args
-    return _not_yet("run")
+    import yaml  # noqa: PLC0415
+
+    from dpcontrol.models.schema import ConfigError  # noqa: PLC0415
+    from sim_plant.bench.run import build_simulation, run_and_report  # noqa: PLC0415
+    from sim_plant.scenario import load_scenario  # noqa: PLC0415
+
+    overrides: dict[str, Any] = {}
+    try:
+        for text in args.override:
+            value = yaml.safe_load(text)
+            if not isinstance(value, dict):
+                raise ValueError(f"--override {text!r}: expected a mapping of config sections")
+            overrides.update(value)
+        if args.estimator:
+            overrides["estimator"] = {**overrides.get("estimator", {}), "kind": args.estimator}
+        if args.control:
+            kind = "mrac" if args.control == "mrac-fixed" else args.control
+            control = {**overrides.get("control", {}), "kind": kind}
+            if args.control == "mrac-fixed":
+                control["adapt"] = False
+            overrides["control"] = control
+        scenario = load_scenario(_scenario_path(args.scenario))
+        simulation = build_simulation(scenario, args.controller_config, overrides or None)
+    except (ConfigError, ValueError, KeyError, OSError, yaml.YAMLError) as error:
+        message = error.args[0] if isinstance(error, KeyError) and error.args else error
+        print(f"sim-plant run: {message}", file=sys.stderr)
+        return EXIT_USAGE
+    outputs = run_and_report(simulation, args.out, plots=not args.no_plots, progress=args.progress,
+                             duration_s=args.duration)
+    summary = outputs.summary
+    metrics = summary.get("metrics", {})
+    print(f"sim-plant run: {scenario.name}: {summary['steps']} steps of {summary['sample_time_s']} s in "
+          f"{summary['wall_time_s']} s ({summary['speed_x_realtime']}x real time)")
+    for key in ("position_error_rms_m", "position_error_max_m", "heading_error_rms_deg", "omega_hat_final_rad_s",
+                "motion_peak_final_rad_s", "dominant_model_final_rad_s", "mrac_mass_surge_error_pct"):
+        if metrics.get(key) is not None:
+            print(f"  {key}: {metrics[key]}")
+    print(f"sim-plant run: wrote {outputs.timeseries}, {outputs.summary_path} and {len(outputs.plots)} plots "
+          f"in {outputs.out_dir}")
+    return EXIT_OK
 
 
 # -- hil ---------------------------------------------------------------------------------------------
@@ -167,26 +225,46 @@ def _cmd_hil(args: argparse.Namespace) -> int:
 
 # -- demo --------------------------------------------------------------------------------------------
 def _add_demo(commands: Any) -> None:
-    sub = commands.add_parser("demo", help="emulator + daemon as two processes with a live view (not yet)")
-    sub.add_argument("scenario", nargs="?", default="demo")
+    sub = commands.add_parser("demo", help="emulator + the real daemon as two processes over pty, CAN, MAVLink "
+                              "and zenoh, with a live view and a report")
+    sub.add_argument("scenario", nargs="?", default="demo", help="scenario (default: the built-in demo, 120 s)")
+    sub.add_argument("--out", type=Path, default=None, help="run directory (default: ./runs/demo-<time>)")
+    sub.add_argument("--duration", type=_positive, default=None, help="seconds (default: the scenario's)")
+    sub.add_argument("--live", action=argparse.BooleanOptionalAction, default=None,
+                     help="live terminal view (default: when stdout is a terminal)")
     sub.set_defaults(handler=_cmd_demo)
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    del args
-    return _not_yet("demo")
+    from sim_plant.bench.demo import DemoError, run_demo  # noqa: PLC0415
+
+    try:
+        report = run_demo(_scenario_path(args.scenario), args.out, duration_s=args.duration, live=args.live)
+    except DemoError as error:
+        print(f"sim-plant demo: {error}", file=sys.stderr)
+        return EXIT_FAILURE
+    print(f"sim-plant demo: report in {report}")
+    return EXIT_OK
 
 
 # -- bench -------------------------------------------------------------------------------------------
 def _add_bench(commands: Any) -> None:
-    sub = commands.add_parser("bench", help="simulation speed benchmark (not yet)")
+    sub = commands.add_parser("bench", help="simulation speed: simulated seconds per wall second")
     sub.add_argument("--json", action="store_true")
+    sub.add_argument("--tanker-duration", type=_positive, default=43200.0,
+                     help="simulated seconds of the seed 003 tanker run (default: the full 12 h)")
+    sub.add_argument("--cs2-duration", type=_positive, default=300.0)
     sub.set_defaults(handler=_cmd_bench)
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
-    del args
-    return _not_yet("bench")
+    import json  # noqa: PLC0415
+
+    from sim_plant.bench.speed import format_speed, run_speed_bench  # noqa: PLC0415
+
+    result = run_speed_bench(tanker_duration_s=args.tanker_duration, cs2_duration_s=args.cs2_duration)
+    print(json.dumps(result, indent=2) if args.json else format_speed(result))
+    return EXIT_OK
 
 
 if __name__ == "__main__":
