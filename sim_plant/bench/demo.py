@@ -1,0 +1,357 @@
+"""``sim-plant demo``: the emulator and the real daemon as two processes, a live view, a report.
+
+The demo is the hardware-in-the-loop bench on one machine:
+
+1. a run directory (``./runs/demo-<UTC time>`` by default) gets the scenario (its sensors spread over
+   all three sensor protocols: NMEA 0183 on a pseudo-terminal, NMEA 2000 on a python-can-remote
+   bus, MAVLink over UDP) and a controller configuration wired to the same places, with free ports
+   on 127.0.0.1;
+2. ``sim-plant hil`` (the emulator) starts and creates the pty, the CAN server and the Zenoh peer;
+   when it reports READY over a private ``NOTIFY_SOCKET`` (the systemd protocol), ``dpcontrol run``
+   starts as a separate process; the emulator, acting as the operator, engages DP and sends the
+   scenario's setpoints over Zenoh;
+3. ``dpcontrol monitor``'s live view runs for the scenario's duration (or a line of progress every
+   ten seconds when the output is not a terminal);
+4. both get SIGTERM (the daemon first: it commands zero thrust last); the report — plots and
+   ``summary.json`` from the plant's truth, the commands it received, the daemon's black-box
+   recording and its loop timing — is written to ``<run>/report``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from interfaces.zenoh.loopback import free_tcp_port
+
+DEMO_SENSORS = [
+    {"name": "gnss1", "kind": "gnss", "protocol": "nmea0183", "rate_hz": 10},
+    {"name": "gyro1", "kind": "gyro", "protocol": "nmea0183", "rate_hz": 10},
+    {"name": "gnss2", "kind": "gnss", "protocol": "nmea2000", "rate_hz": 5},
+    {"name": "gyro2", "kind": "gyro", "protocol": "nmea2000", "rate_hz": 10},
+    {"name": "gnss3", "kind": "gnss", "protocol": "mavlink", "rate_hz": 5},
+]
+READY_TIMEOUT_S = 60.0
+
+
+class DemoError(RuntimeError):
+    """The demo could not run (a process failed to start, a port could not be found ...)."""
+
+
+def _free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+class _NotifyListener:
+    """A private sd_notify socket: learns when a child process says READY=1 (and collects its status)."""
+
+    def __init__(self, directory: Path, name: str) -> None:
+        self.path = directory / f"{name}.sock"
+        self.sock = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+        self.sock.bind(str(self.path))
+        self.messages: list[str] = []
+
+    def wait_ready(self, timeout_s: float, process: subprocess.Popen[bytes]) -> bool:
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if process.poll() is not None:
+                return False
+            self.sock.settimeout(min(0.5, max(0.01, deadline - time.monotonic())))
+            try:
+                data = self.sock.recv(4096).decode("utf-8", "replace")
+            except TimeoutError:
+                continue
+            self.messages.append(data)
+            if "READY=1" in data.split("\n"):
+                return True
+        return False
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+def prepare(scenario_path: Path, run_dir: Path) -> tuple[Path, Path, dict[str, Any]]:
+    """Write the demo scenario and the controller configuration into ``run_dir``.
+
+    Returns the two paths and the wiring (vessel id, zenoh endpoint, duration).
+    """
+    scenario = yaml.safe_load(scenario_path.read_text(encoding="utf-8"))
+    if not isinstance(scenario, dict):
+        raise DemoError(f"{scenario_path}: not a scenario mapping")
+    protocols = {s.get("protocol", "nmea0183") for s in scenario.get("sensors") or []}
+    if not {"nmea0183", "nmea2000", "mavlink"} <= protocols:
+        scenario["sensors"] = DEMO_SENSORS  # the demo shows every transport
+    short = Path(tempfile.mkdtemp(prefix="dp-demo-"))  # pty symlinks and sockets: short paths
+    zenoh_port, can_port, mav_port = free_tcp_port(), free_tcp_port(), _free_udp_port()
+    controller = dict(scenario.get("controller") or {})
+    transports = [
+        {"name": "serial_nav", "protocol": "nmea0183", "port": str(short / "ttyNAV"), "baud": 38400},
+        {"name": "can_nav", "protocol": "nmea2000", "interface": "remote", "channel": f"ws://127.0.0.1:{can_port}/"},
+        {"name": "autopilot", "protocol": "mavlink", "url": f"udpin:127.0.0.1:{mav_port}"},
+    ]
+    transport_of = {"nmea0183": "serial_nav", "nmea2000": "can_nav", "mavlink": "autopilot"}
+    sensors = []
+    address = 40
+    for spec in scenario["sensors"]:
+        entry: dict[str, Any] = {"name": spec["name"], "transport": transport_of[spec.get("protocol", "nmea0183")],
+                                 "rate_hz": spec.get("rate_hz", 5 if spec["kind"] == "gnss" else 10)}
+        if spec["kind"] == "gnss":
+            entry.update(kind="position", sigma_m=max(float(spec.get("noise_m", 0.02)), 0.01))
+        else:
+            entry.update(kind="heading", sigma_deg=max(float(spec.get("noise_deg", 0.05)), 0.02))
+        if spec.get("protocol") == "nmea2000":
+            entry["source_address"] = address
+            address += 1
+        elif spec.get("protocol") == "mavlink":
+            entry["system_id"] = 1
+        sensors.append(entry)
+    config: dict[str, Any] = {
+        "vessel_id": "demo",
+        "vessel": scenario.get("vessel", "cybership2"),
+        "datum": scenario.get("datum"),
+        "loop": {"rate_hz": 10},
+        "transports": transports,
+        "sensors": sensors,
+        "zenoh": {"mode": "peer", "listen": [f"tcp/127.0.0.1:{zenoh_port}"]},
+        "recorder": {"path": str(run_dir / "records"), "flush_s": 0.5},
+        "state": {"path": str(run_dir / "state.json"), "max_age_s": 30},
+    }
+    for key in ("estimator", "control", "guidance", "allocation", "hub", "fallback", "thruster_monitor"):
+        if key in controller:
+            config[key] = controller[key]
+    if config["datum"] is None:
+        del config["datum"]
+    scenario_file = run_dir / "scenario.yaml"
+    config_file = run_dir / "vessel.yaml"
+    scenario_file.write_text(yaml.safe_dump(scenario, sort_keys=False), encoding="utf-8")
+    config_file.write_text(yaml.safe_dump(config, sort_keys=False), encoding="utf-8")
+    wiring = {"vessel_id": "demo", "zenoh": f"tcp/127.0.0.1:{zenoh_port}", "short_dir": str(short),
+              "duration_s": float(scenario.get("duration_s", 120.0))}
+    return scenario_file, config_file, wiring
+
+
+def _spawn(args: list[str], log: Path, notify: _NotifyListener) -> subprocess.Popen[bytes]:
+    env = dict(os.environ, NOTIFY_SOCKET=str(notify.path), PYTHONUNBUFFERED="1", OPENBLAS_NUM_THREADS="1")
+    handle = log.open("wb")
+    return subprocess.Popen(args, stdout=handle, stderr=subprocess.STDOUT, env=env, start_new_session=True)
+
+
+def _stop(process: subprocess.Popen[bytes], timeout_s: float = 15.0) -> int | None:
+    if process.poll() is None:
+        process.send_signal(signal.SIGTERM)
+        try:
+            process.wait(timeout_s)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait(5.0)
+    return process.returncode
+
+
+def run_demo(scenario_path: Path, run_dir: Path | None = None, *, duration_s: float | None = None,
+             live: bool | None = None, quiet: bool = False) -> Path:
+    """Run the demo (see the module docstring); returns the report directory."""
+    stamp = time.strftime("%Y%m%d-%H%M%S", time.gmtime())
+    run_dir = run_dir or Path("runs") / f"demo-{stamp}"
+    run_dir.mkdir(parents=True, exist_ok=True)
+    scenario_file, config_file, wiring = prepare(scenario_path, run_dir)
+    duration = duration_s if duration_s is not None else wiring["duration_s"]
+    short = Path(wiring["short_dir"])
+    say = (lambda *_: None) if quiet else (lambda text: print(f"sim-plant demo: {text}", flush=True))
+    plant_notify = _NotifyListener(short, "plant")
+    daemon_notify = _NotifyListener(short, "daemon")
+    python = sys.executable
+    emulator = daemon = None
+    try:
+        say(f"run directory {run_dir}")
+        emulator = _spawn([python, "-m", "sim_plant.cli", "--log-level", "WARNING", "hil", str(scenario_file),
+                           "--controller-config", str(config_file), "--out", str(run_dir / "plant"), "--engage",
+                           "--duration", str(duration)], run_dir / "sim-plant.log", plant_notify)
+        if not plant_notify.wait_ready(READY_TIMEOUT_S, emulator):
+            raise DemoError(f"the emulator did not become ready (see {run_dir / 'sim-plant.log'})")
+        plant_start = time.monotonic()
+        say("emulator ready: NMEA 0183 on a pty, NMEA 2000 on python-can-remote, MAVLink on UDP, Zenoh peer")
+        daemon = _spawn([python, "-m", "dpcontrol.cli", "run", "--config", str(config_file), "--stats-out",
+                         str(run_dir / "dpcontrol-stats.json")], run_dir / "dpcontrol.log", daemon_notify)
+        if not daemon_notify.wait_ready(READY_TIMEOUT_S, daemon):
+            raise DemoError(f"dpcontrol did not become ready (see {run_dir / 'dpcontrol.log'})")
+        say(f"dpcontrol ready; running the {duration:g} s scenario (live view: dpcontrol monitor --vessel demo "
+            f"--connect {wiring['zenoh']})")
+        remaining = duration - (time.monotonic() - plant_start)
+        show_live = sys.stdout.isatty() if live is None else live
+        if show_live and remaining > 1.0:
+            from dpcontrol.monitor import run_monitor  # noqa: PLC0415
+
+            run_monitor(wiring["vessel_id"], (wiring["zenoh"],), duration_s=remaining)
+        else:
+            end = plant_start + duration
+            while time.monotonic() < end:
+                if emulator.poll() is not None or daemon.poll() is not None:
+                    break
+                time.sleep(min(10.0, max(0.0, end - time.monotonic())))
+                say(f"t = {time.monotonic() - plant_start:5.0f} s of {duration:g} s")
+        daemon_code = _stop(daemon)
+        plant_code = _stop(emulator)
+        say(f"stopped: dpcontrol exit {daemon_code}, sim-plant exit {plant_code}")
+        report_dir = write_report(run_dir, wiring, daemon_code=daemon_code, plant_code=plant_code)
+        return report_dir
+    finally:
+        for process in (daemon, emulator):
+            if process is not None and process.poll() is None:
+                process.kill()
+        plant_notify.close()
+        daemon_notify.close()
+        shutil.rmtree(short, ignore_errors=True)
+
+
+def _read_csv(path: Path) -> dict[str, np.ndarray]:
+    if not path.exists():
+        return {}
+    with path.open(encoding="utf-8") as handle:
+        header = handle.readline().strip().split(",")
+        rows = [line.strip().split(",") for line in handle if line.strip()]
+    columns: dict[str, np.ndarray] = {}
+    for i, name in enumerate(header):
+        values = []
+        for row in rows:
+            try:
+                values.append(float(row[i]) if i < len(row) and row[i] != "" else math.nan)
+            except ValueError:
+                values.append(math.nan)
+        columns[name] = np.array(values)
+    columns["_text"] = rows  # type: ignore[assignment]
+    columns["_header"] = header  # type: ignore[assignment]
+    return columns
+
+
+def write_report(run_dir: Path, wiring: dict[str, Any], *, daemon_code: int | None,
+                 plant_code: int | None) -> Path:
+    """Plots and ``summary.json`` of a demo run (see the module docstring)."""
+    from dpcontrol.logtools import read_records  # noqa: PLC0415
+
+    report = run_dir / "report"
+    report.mkdir(exist_ok=True)
+    truth = _read_csv(run_dir / "plant" / "truth.csv")
+    commands = _read_csv(run_dir / "plant" / "commands.csv")
+    scenario = yaml.safe_load((run_dir / "scenario.yaml").read_text(encoding="utf-8"))
+    summary: dict[str, Any] = {"run_dir": str(run_dir), "dpcontrol_exit": daemon_code, "sim_plant_exit": plant_code}
+    stats_file = run_dir / "dpcontrol-stats.json"
+    if stats_file.exists():
+        summary["dpcontrol_loop"] = json.loads(stats_file.read_text(encoding="utf-8"))
+    hil_file = run_dir / "plant" / "hil_summary.json"
+    if hil_file.exists():
+        hil = json.loads(hil_file.read_text(encoding="utf-8"))
+        summary["sim_plant"] = {k: hil.get(k) for k in ("duration_s", "stopped_by", "loop", "counts", "engage")}
+    # the daemon's record: estimate, mode changes, alarms
+    estimates: list[tuple[float, list[float]]] = []
+    weights: list[tuple[float, list[float]]] = []
+    modes: list[dict[str, Any]] = []
+    alarms: list[dict[str, Any]] = []
+    records_dir = run_dir / "records"
+    if records_dir.exists():
+        for record in read_records(records_dir, ("estimate", "mmae", "mode", "alarm")):
+            p = record.payload
+            if record.topic == "estimate":
+                estimates.append((float(p["t_s"]), p["eta_n"]))
+            elif record.topic == "mmae":
+                weights.append((float(p["t_s"]), p["weights"]))
+            elif record.topic == "mode":
+                modes.append(p)
+            else:
+                alarms.append(p)
+    summary["mode_changes"] = modes
+    summary["alarms_raised"] = sorted({a["code"] for a in alarms if a.get("raised")})
+    # station keeping on the plant's truth, against the scenario setpoints in force
+    if truth:
+        t = truth["t_s"]
+        setpoints = sorted(scenario.get("setpoints") or [], key=lambda s: s["t_s"])
+        ref_n = np.full_like(t, np.nan)
+        ref_e = np.full_like(t, np.nan)
+        for sp in setpoints:
+            mask = t >= sp["t_s"]
+            if sp.get("north_m") is not None:
+                ref_n[mask] = sp["north_m"]
+                ref_e[mask] = sp["east_m"]
+        engaged_t = next((float(m["t_s"]) for m in modes if m.get("to") == "auto_position"), None)
+        summary["dp_engaged"] = engaged_t is not None
+        error = np.hypot(truth["north_m"] - ref_n, truth["east_m"] - ref_e)
+        settled = t >= (t[0] + 0.5 * (t[-1] - t[0]))
+        if np.any(np.isfinite(error[settled])):
+            summary["position_error_last_half_max_m"] = round(float(np.nanmax(error[settled])), 4)
+            summary["position_error_last_half_rms_m"] = round(float(np.sqrt(np.nanmean(error[settled] ** 2))), 4)
+        summary["final_position_m"] = [round(float(truth["north_m"][-1]), 4), round(float(truth["east_m"][-1]), 4)]
+        summary["final_setpoint_m"] = [None if not setpoints else setpoints[-1].get("north_m"),
+                                       None if not setpoints else setpoints[-1].get("east_m")]
+    if commands:
+        text = commands["_text"]
+        header = commands["_header"]
+        if text:
+            last_t = text[-1][header.index("t_s")]
+            last = [row for row in text if row[header.index("t_s")] == last_t]
+            summary["last_command"] = {"mode": last[0][header.index("mode")],
+                                       "thrust_n": [float(r[header.index("thrust_n")]) for r in last]}
+            summary["zero_thrust_commanded_last"] = all(
+                abs(float(r[header.index("thrust_n")])) == 0.0 for r in last)
+    (report / "summary.json").write_text(json.dumps(summary, indent=2, default=str) + "\n", encoding="utf-8")
+    _plots(report, truth, scenario, estimates, weights)
+    return report
+
+
+def _plots(report: Path, truth: dict[str, np.ndarray], scenario: dict[str, Any],
+           estimates: list[tuple[float, list[float]]], weights: list[tuple[float, list[float]]]) -> None:
+    import matplotlib  # noqa: PLC0415
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt  # noqa: PLC0415
+
+    if not truth:
+        return
+    fig, axes = plt.subplots(3, 1, figsize=(11, 8), sharex=True)
+    t = truth["t_s"]
+    for ax, (key, total, label, scale) in zip(axes, (("north_m", "north_total_m", "north [m]", 1.0),
+                                                      ("east_m", "east_total_m", "east [m]", 1.0),
+                                                      ("heading_rad", "heading_total_rad", "heading [deg]",
+                                                       180 / math.pi)), strict=True):
+        ax.plot(t, truth[total] * scale, lw=0.6, alpha=0.6, label="true total (plant)")
+        ax.plot(t, truth[key] * scale, lw=1.4, label="true LF (plant)")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    for sp in scenario.get("setpoints") or []:
+        for ax in axes:
+            ax.axvline(sp["t_s"], color="k", ls=":", lw=0.8)
+    axes[0].legend(fontsize=8)
+    axes[0].set_title("sim-plant demo: the vessel as the plant saw it (dotted: setpoint changes)")
+    axes[-1].set_xlabel("plant time [s]")
+    fig.tight_layout()
+    fig.savefig(report / "pose.png", dpi=110)
+    plt.close(fig)
+    if weights:
+        fig, ax = plt.subplots(figsize=(11, 4))
+        tw = np.array([w[0] for w in weights])
+        values = np.array([w[1] for w in weights])
+        omegas = (scenario.get("controller") or {}).get("estimator", {}).get("omegas_rad_s") or \
+            list(range(values.shape[1]))
+        for i in range(values.shape[1]):
+            ax.plot(tw - tw[0], values[:, i], label=f"{omegas[i]} rad/s" if i < len(omegas) else str(i))
+        ax.set_ylabel("MMAE weight")
+        ax.set_xlabel("daemon time since the first estimate [s]")
+        ax.legend(fontsize=8, ncol=4)
+        ax.grid(alpha=0.3)
+        ax.set_title("MMAE weights as published by dpcontrol")
+        fig.tight_layout()
+        fig.savefig(report / "weights.png", dpi=110)
+        plt.close(fig)
