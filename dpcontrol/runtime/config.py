@@ -8,7 +8,6 @@ documented in the README ("Configuration reference") and exemplified in ``deploy
 from __future__ import annotations
 
 import hashlib
-import json
 import math
 import re
 from collections.abc import Mapping
@@ -416,8 +415,8 @@ def load_config(path: str | Path) -> DaemonConfig:
     return parse_config(mapping, file=file, text=text)
 
 
-def config_as_json(config: DaemonConfig) -> str:
-    """The running configuration as JSON (the ``dp/<vessel>/config`` queryable)."""
+def config_summary(config: DaemonConfig) -> dict[str, Any]:
+    """The running configuration as a JSON-able mapping (the ``dp/<vessel>/config`` queryable)."""
     mapping = yaml.safe_load(config.source_text) if config.source_text else {}
-    return json.dumps({"schema": "dpcontrol.config/1", "vessel_id": config.vessel_id,
-                       "config_sha256": config.config_hash, "config": mapping}, default=str)
+    return {"vessel_id": config.vessel_id, "config_sha256": config.config_hash, "file": config.source_file,
+            "config": mapping}

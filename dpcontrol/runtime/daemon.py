@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from dpcontrol.runtime.alarms import AlarmRegistry, Severity
-from dpcontrol.runtime.config import DaemonConfig, TransportConfig, config_as_json
+from dpcontrol.runtime.config import DaemonConfig, TransportConfig, config_summary
 from dpcontrol.runtime.inputs import SensorRouter
 from dpcontrol.runtime.persist import BackgroundSaver, StateStore
 from dpcontrol.runtime.step import DpController, Mode, StepOutput
@@ -333,9 +333,11 @@ class Daemon:
 
         node.subscribe("feedback", self._feedback_slot,
                        parse=functools.partial(schemas.parse_feedback, thruster_names=self._names))
-        config_json = config_as_json(cfg).encode("utf-8")
-        node.serve_config(lambda: config_json)
+        summary = config_summary(cfg)
+        node.serve_config(lambda: schemas.config_payload(t_s=self.clock(), seq=self._seq, config=summary))
         node.declare_alive("controller")
+        # The drives' (plant's) presence: its loss is a fault the operator must see.
+        self._drives = node.watch_alive("plant")
         self.pump = InputPump(cfg, self.clock, self.recorder)
         self.pump.start()
 
@@ -463,6 +465,9 @@ class Daemon:
         published = self.clock()
         self._publish_rest(t_s, seq, out)
         self._error_rate_alarms(t_s)
+        drives = self._drives.state
+        self.alarms.set(t_s, "thrusters.drives_lost", drives.seen and not drives.present, Severity.ALARM,
+                        "the thruster drives' liveliness token is gone (dp/<vessel>/alive/plant)")
         self._record(t_s, out, seq)
         self._persist(t_s)
         return out, published

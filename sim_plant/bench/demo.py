@@ -98,6 +98,7 @@ def prepare(scenario_path: Path, run_dir: Path) -> tuple[Path, Path, dict[str, A
         scenario["sensors"] = DEMO_SENSORS  # the demo shows every transport
     short = Path(tempfile.mkdtemp(prefix="dp-demo-"))  # pty symlinks and sockets: short paths
     zenoh_port, can_port, mav_port = free_tcp_port(), free_tcp_port(), _free_udp_port()
+    plant_zenoh_port = free_tcp_port()
     controller = dict(scenario.get("controller") or {})
     transports = [
         {"name": "serial_nav", "protocol": "nmea0183", "port": str(short / "ttyNAV"), "baud": 38400},
@@ -140,9 +141,19 @@ def prepare(scenario_path: Path, run_dir: Path) -> tuple[Path, Path, dict[str, A
     config_file = run_dir / "vessel.yaml"
     scenario_file.write_text(yaml.safe_dump(scenario, sort_keys=False), encoding="utf-8")
     config_file.write_text(yaml.safe_dump(config, sort_keys=False), encoding="utf-8")
-    wiring = {"vessel_id": "demo", "zenoh": f"tcp/127.0.0.1:{zenoh_port}", "short_dir": str(short),
+    wiring = {"vessel_id": "demo", "zenoh": f"tcp/127.0.0.1:{zenoh_port}",
+              "zenoh_plant": f"tcp/127.0.0.1:{plant_zenoh_port}", "short_dir": str(short),
               "duration_s": float(scenario.get("duration_s", 120.0))}
     return scenario_file, config_file, wiring
+
+
+def emulator_command(scenario_file: Path, config_file: Path, wiring: dict[str, Any], out_dir: Path,
+                     duration_s: float) -> list[str]:
+    """``sim-plant hil`` for the demo: engages DP as the operator; listens on its own zenoh endpoint (so a
+    monitor sees the plant's liveliness too) and connects to the daemon's."""
+    return [sys.executable, "-m", "sim_plant.cli", "--log-level", "WARNING", "hil", str(scenario_file),
+            "--controller-config", str(config_file), "--out", str(out_dir), "--engage", "--duration", str(duration_s),
+            "--zenoh-listen", wiring["zenoh_plant"], "--zenoh-connect", wiring["zenoh"]]
 
 
 def _spawn(args: list[str], log: Path, notify: _NotifyListener) -> subprocess.Popen[bytes]:
@@ -178,9 +189,8 @@ def run_demo(scenario_path: Path, run_dir: Path | None = None, *, duration_s: fl
     emulator = daemon = None
     try:
         say(f"run directory {run_dir}")
-        emulator = _spawn([python, "-m", "sim_plant.cli", "--log-level", "WARNING", "hil", str(scenario_file),
-                           "--controller-config", str(config_file), "--out", str(run_dir / "plant"), "--engage",
-                           "--duration", str(duration)], run_dir / "sim-plant.log", plant_notify)
+        emulator = _spawn(emulator_command(scenario_file, config_file, wiring, run_dir / "plant", duration),
+                          run_dir / "sim-plant.log", plant_notify)
         if not plant_notify.wait_ready(READY_TIMEOUT_S, emulator):
             raise DemoError(f"the emulator did not become ready (see {run_dir / 'sim-plant.log'})")
         plant_start = time.monotonic()
@@ -196,7 +206,7 @@ def run_demo(scenario_path: Path, run_dir: Path | None = None, *, duration_s: fl
         if show_live and remaining > 1.0:
             from dpcontrol.monitor import run_monitor  # noqa: PLC0415
 
-            run_monitor(wiring["vessel_id"], (wiring["zenoh"],), duration_s=remaining)
+            run_monitor(wiring["vessel_id"], (wiring["zenoh"], wiring["zenoh_plant"]), duration_s=remaining)
         else:
             end = plant_start + duration
             while time.monotonic() < end:
