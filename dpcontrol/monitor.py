@@ -48,8 +48,8 @@ DEFAULT_CONNECT: tuple[str, ...] = ("tcp/127.0.0.1:7447",)
 _NO_DATA = "no data"
 _PANEL_WIDTH = 62
 _DASH = "—"
-_STATE_STYLE = {"ok": "green", "stale": "yellow", "frozen": "red", "rejected": "red", "invalid": "red",
-                "disconnected": "bold red"}
+_STATE_STYLE = {"ok": "green", "waiting": "dim", "isolated": "red", "stale": "yellow", "frozen": "red",
+                "rejected": "red", "invalid": "red", "disconnected": "bold red"}
 _SEVERITY_STYLE = {"info": "cyan", "warning": "yellow", "alarm": "red", "critical": "bold white on red"}
 
 

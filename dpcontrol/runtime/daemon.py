@@ -502,11 +502,12 @@ class Daemon:
             self._cycle_summary = self.stats.summary()
             self._last_stats_t = t_s
         durations = self._cycle_summary.get("cycle_duration_us", {})
-        sensors = [schemas.SensorHealth(s["name"], s["kind"], s["state"], s["age_s"], s["weight"], s["detail"])
+        # texts are bounded by the status schema (256 characters)
+        sensors = [schemas.SensorHealth(s["name"], s["kind"], s["state"], s["age_s"], s["weight"], s["detail"][:256])
                    for s in self.controller.hub.sensor_status(t_s)]
-        alarms = [schemas.Alarm(a.code, a.severity.name.lower(), a.text, a.since_t_s, a.active)
+        alarms = [schemas.Alarm(a.code, a.severity.name.lower(), a.text[:256], a.since_t_s, a.active)
                   for a in self.alarms.listed(t_s)]
-        thrusters = [schemas.ThrusterAvailability(t["name"], t["available"], t["detail"])
+        thrusters = [schemas.ThrusterAvailability(t["name"], t["available"], t["detail"][:256])
                      for t in self.controller.monitor.status()]
         cycle = schemas.CycleTiming(self.config.sample_time_s, durations.get("median"), durations.get("p99"),
                                     self.stats.missed_deadlines)

@@ -107,7 +107,8 @@ from interfaces.messages import Rejected
 # --------------------------------------------------------------------------------------------
 
 MODES: tuple[str, ...] = ("standby", "auto_heading", "auto_position")
-SENSOR_STATES: tuple[str, ...] = ("ok", "stale", "frozen", "rejected", "invalid", "disconnected")
+SENSOR_STATES: tuple[str, ...] = ("ok", "waiting", "stale", "frozen", "rejected", "isolated", "invalid",
+                                  "disconnected")
 SEVERITIES: tuple[str, ...] = ("info", "warning", "alarm", "critical")
 BIAS_FRAMES: tuple[str, ...] = ("ned", "body")
 

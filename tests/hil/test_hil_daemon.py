@@ -79,8 +79,9 @@ def hil_run(tmp_path_factory: pytest.TempPathFactory) -> dict:
                             window[topic].append(time.monotonic())
                 return Sink()
 
+            subscribers: dict = {}
             for topic in ("command", "estimate", "mmae", "control", "status"):
-                node.subscribe(topic, counter(topic), parse=lambda payload: payload)
+                subscribers[topic] = node.subscribe(topic, counter(topic))  # validated against the schemas
             for role in ("controller", "plant"):
                 node.watch_alive(role, lambda present, t, r=role: seen_alive.add(r) if present else None)
             reply = node.query_config(10.0)
@@ -88,6 +89,8 @@ def hil_run(tmp_path_factory: pytest.TempPathFactory) -> dict:
                 config_reply.update(reply)
             remaining = DURATION_S - (time.monotonic() - start)
             time.sleep(max(0.0, remaining))  # the scenario runs in real time: there is nothing to await
+            rejected = {topic: sub.stats.rejected for topic, sub in subscribers.items()}
+            last_rejection = {topic: sub.stats.last_rejection for topic, sub in subscribers.items()}
         finally:
             node.close()
         daemon_code = _stop(daemon)
@@ -105,7 +108,8 @@ def hil_run(tmp_path_factory: pytest.TempPathFactory) -> dict:
         if len(steady) > 2:
             rates[topic] = (len(steady) - 1) / (steady[-1] - steady[0])
     return {"run_dir": run_dir, "summary": json.loads((report / "summary.json").read_text()),
-            "counts": dict(counts), "rates": rates, "alive": seen_alive, "config": config_reply,
+            "counts": dict(counts), "rates": rates, "rejected": rejected,
+            "last_rejection": last_rejection, "alive": seen_alive, "config": config_reply,
             "daemon_log": (run_dir / "dpcontrol.log").read_text(), "wiring": wiring}
 
 
@@ -128,6 +132,7 @@ def test_daemon_reaches_dp_and_follows_the_setpoint_within_the_bound(hil_run: di
 
 def test_every_key_is_published_at_the_configured_rate(hil_run: dict) -> None:
     rates = hil_run["rates"]
+    assert all(count == 0 for count in hil_run["rejected"].values()), hil_run["last_rejection"]
     for topic in ("command", "estimate", "mmae", "control", "status"):
         assert topic in rates, (topic, hil_run["counts"])
         assert 9.0 <= rates[topic] <= 11.0, (topic, rates[topic])
