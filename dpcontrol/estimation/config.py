@@ -30,9 +30,14 @@ damping matrices, so one rule serves a 1.3 m model (CyberShip II) and a 260 m ta
   (stationary standard deviation σ_b). Surge and sway share one value so the model is invariant
   to the vessel-parallel rotation.
 * Measurement noise: ``σ_pos = 0.002·L`` (GNSS/DGNSS at full scale), heading 0.1° (gyro).
-* MMAE weights: common normalising covariance (``likelihood_scale="common"``), discrete Bayes
-  with forgetting time T_f = 200 s and a relative floor of 10⁻⁶ (see
-  :mod:`~dpcontrol.estimation.weighting` for why, and the tests for what they achieve).
+* MMAE weights: discrete Bayes with forgetting time T_f = 600 s and a relative floor of 10⁻⁶, fed
+  with the band-limited, locally whitened and tempered likelihood (``likelihood_scale="band"``):
+  prefilter band ``[ω_1/2, 1.5·ω_N]``, short-window statistics over two periods of the lowest model
+  (``4π/ω_1``), LF-validity limit 2 (see :mod:`~dpcontrol.estimation.weighting` for why, and
+  ``tests/closed_loop`` for what they achieve on the plant). T_f = 600 s because the tempered evidence
+  arrives at ≈ B/π independent samples per second: with 200 s the 0.9 rad/s model of cs2-seed000 held
+  only 0.5–0.9 of the weight against 1.05 (they differ by ~10 % in band energy); with 600 s it holds
+  > 0.9, and the seed 001 sea-state switches still take only 75–90 s.
 
 ``process_noise_intensity`` (9 numbers, ``diag(Q1, Q2, Q3)`` in the units of
 :mod:`~dpcontrol.estimation.design_model`) overrides the rule, e.g. to reproduce seed 000 App. A.
@@ -53,7 +58,7 @@ KINDS = ("mmae", "kf", "rpem", "raw")
 WF_FRAMES = ("body", "earth")
 WF_NOISE_RULES = ("equal_intensity", "equal_variance")
 WEIGHTINGS = ("dwsg", "bayes")
-LIKELIHOOD_SCALES = ("common", "own")
+LIKELIHOOD_SCALES = ("band", "common", "own")
 DEFAULT_OMEGAS_RAD_S = (0.3, 0.45, 0.6, 0.75, 0.9, 1.05, 1.2, 1.35)
 
 _GRAVITY_MPS2 = 9.81
@@ -116,10 +121,19 @@ class WaveFilterConfig:
     weighting : {"bayes", "dwsg"}
         Discrete Bayes with forgetting (default), or the seed 000 eq. (18) DWSG (mmae); see
         :mod:`~dpcontrol.estimation.weighting` for why Bayes is the default.
-    likelihood_scale : {"common", "own"}
-        ``common`` (default): every model's error measure uses one fixed normalising covariance
+    likelihood_scale : {"band", "common", "own"}
+        ``band`` (default): band-limited, locally whitened, tempered likelihood with the LF-validity
+        gate (:class:`~dpcontrol.estimation.weighting.BandLikelihood`, what works in closed loop on a
+        real plant); ``common``: per-sample error measure with one fixed normalising covariance
         (minimum-energy criterion, seed 001 ref. [21]); ``own``: seed 000's ``β_i e^{−m_i}`` with each
         filter's innovation covariance S_i (prone to the DESIGN.md §5 trap on real seas).
+    likelihood_band_rad_s : (float, float) or None
+        Prefilter pass band of the ``band`` likelihood [rad/s] (None: ``[ω_1/2, 1.5·ω_N]``).
+    likelihood_time_s : float or None
+        Time constant of its short-window statistics [s] (None: two periods of the lowest model, 4π/ω_1).
+    lf_excess_limit : float
+        LF-validity gate of the ``band`` likelihood: low-frequency innovation energy, relative to
+        white innovations, above which evidence is scaled down (``inf``: no gate).
     dwsg_rate_per_s : float
         λ of the DWSG [1/s].
     forgetting_time_s : float
@@ -159,9 +173,12 @@ class WaveFilterConfig:
     position_noise_std_m: float | None = None
     heading_noise_std_rad: float | None = None
     weighting: str = "bayes"
-    likelihood_scale: str = "common"
+    likelihood_scale: str = "band"
+    likelihood_band_rad_s: tuple[float, float] | None = None
+    likelihood_time_s: float | None = None
+    lf_excess_limit: float = 2.0
     dwsg_rate_per_s: float = 1.0
-    forgetting_time_s: float = 200.0
+    forgetting_time_s: float = 600.0
     weight_floor: float = 1e-6
     time_varying: bool = False
     rpem_forgetting: float = 0.996
@@ -221,6 +238,19 @@ class WaveFilterConfig:
             object.__setattr__(self, "process_noise_intensity",
                                _tuple_of(self.process_noise_intensity, 9, "process_noise_intensity",
                                          nonnegative=True))
+        if self.likelihood_band_rad_s is not None:
+            band = _tuple_of(self.likelihood_band_rad_s, 2, "likelihood_band_rad_s", positive=True)
+            if not band[0] < band[1]:
+                raise ConfigError("likelihood_band_rad_s", "[low, high] with 0 < low < high [rad/s]", list(band))
+            if band[1] >= math.pi / float(self.sample_time_s):
+                raise ConfigError("likelihood_band_rad_s", f"a high edge below the Nyquist frequency "
+                                  f"{math.pi / float(self.sample_time_s):g} rad/s", list(band))
+            object.__setattr__(self, "likelihood_band_rad_s", band)
+        if self.likelihood_time_s is not None:
+            check_number(self.likelihood_time_s, "likelihood_time_s", minimum=0.0, exclusive_minimum=True)
+        if not (isinstance(self.lf_excess_limit, (int, float)) and not isinstance(self.lf_excess_limit, bool)
+                and self.lf_excess_limit > 0.0 and not math.isnan(self.lf_excess_limit)):
+            raise ConfigError("lf_excess_limit", "a number > 0 (inf: no gate)", self.lf_excess_limit)
         check_number(self.dwsg_rate_per_s, "dwsg_rate_per_s", minimum=0.0, exclusive_minimum=True)
         if not (isinstance(self.forgetting_time_s, (int, float)) and not isinstance(self.forgetting_time_s, bool)
                 and self.forgetting_time_s > 0.0 and not math.isnan(self.forgetting_time_s)):
@@ -296,6 +326,24 @@ class WaveFilterConfig:
             return self.bias_std() ** 2 / self.bias_drift_time_s
         return 2.0 * self.bias_std() ** 2 / np.asarray(self.bias_time_constants_s)
 
+    def likelihood_band(self) -> tuple[float, float]:
+        """Prefilter pass band of the ``band`` likelihood [rad/s]: explicit, or ``[ω_1/2, 1.5·ω_N]``.
+
+        The sea of the lowest model starts at ≈ 0.8·ω_1 and a JONSWAP peaked at the top model keeps
+        its energy up to ≈ 1.5·ω_N; the high edge is kept below 0.9 × the Nyquist frequency.
+        """
+        if self.likelihood_band_rad_s is not None:
+            return (float(self.likelihood_band_rad_s[0]), float(self.likelihood_band_rad_s[1]))
+        omegas = self.omegas_rad_s or (0.8,)
+        nyquist = math.pi / self.sample_time_s
+        return (0.5 * min(omegas), min(1.5 * max(omegas), 0.9 * nyquist))
+
+    def likelihood_scale_time_s(self) -> float:
+        """Short-window time constant of the ``band`` likelihood [s]: explicit, or 4π/ω_1."""
+        if self.likelihood_time_s is not None:
+            return float(self.likelihood_time_s)
+        return 4.0 * math.pi / min(self.omegas_rad_s or (0.8,))
+
     def measurement_covariance(self) -> np.ndarray:
         """R (3, 3) per sample [m², m², rad²]."""
         pos = self.position_noise_std_m if self.position_noise_std_m is not None else 0.002 * self.length_scale_m
@@ -337,7 +385,7 @@ class WaveFilterConfig:
         for key in list(section.data):
             if key in known:
                 value = section.raw(key)
-                if key == "forgetting_time_s" and value in ("inf", ".inf"):
+                if key in ("forgetting_time_s", "lf_excess_limit") and value in ("inf", ".inf"):
                     value = math.inf
                 values[key] = tuple(value) if isinstance(value, list) else value
         section.finish()

@@ -26,10 +26,15 @@ with nothing measured the filter only predicts (dead reckoning).
 
 MMAE weights
 ------------
-Each model's error measure uses one common normalising covariance (minimum-energy criterion) and
-each model's WF noise intensity gives every model the same WF variance by default — the two
-remedies for the DESIGN.md §5 trap; weights follow the discrete Bayes recursion with forgetting and
-a floor (:mod:`~dpcontrol.estimation.weighting`), or the exactly integrated DWSG of seed 000 eq. (18).
+By default the models are compared on band-limited, locally whitened and tempered innovations
+(:class:`~dpcontrol.estimation.weighting.BandLikelihood`: only the wave band, a scale-free measure,
+evidence counted at the rate of independent samples, held while the LF model is in a transient,
+position and heading weighted by the share of the WF motion measured in each), and each
+model's WF noise intensity gives every model the same WF variance — the remedies for the DESIGN.md §5
+trap and for the chatter of per-sample likelihoods on a real plant. The per-sample forms
+(``likelihood_scale="common"``/``"own"``) remain for design-model data. Weights follow the discrete
+Bayes recursion with forgetting and a floor (:mod:`~dpcontrol.estimation.weighting`), or the exactly
+integrated DWSG of seed 000 eq. (18).
 
 Timing and outputs
 ------------------
@@ -63,7 +68,7 @@ from dpcontrol.estimation.config import WaveFilterConfig
 from dpcontrol.estimation.design_model import DesignModel, StateIndex, dp_design_model
 from dpcontrol.estimation.discretize import discretize
 from dpcontrol.estimation.kalman import KalmanFilter, SteadyStateFilter, pattern_code, pattern_gains
-from dpcontrol.estimation.weighting import bayes_step, dwsg_step
+from dpcontrol.estimation.weighting import BandLikelihood, bayes_step, dwsg_step
 from dpcontrol.models.frames import ssa, ssa_array
 
 STATE_DICT_VERSION = 1
@@ -381,6 +386,17 @@ class BankWaveFilter(_FrameFilter):
         self._log_beta_own = np.stack([np.array([-0.5 * g[code].log_det_S for g in gains]) for code in codes])
         self.common_scale = s_common
         self._common = config.likelihood_scale == "common"
+        self.band_likelihood: BandLikelihood | None = None
+        if kind == "mmae" and config.likelihood_scale == "band":
+            wf_std = config.wf_std()
+            half_length = 0.5 * config.length_scale_m
+            self.band_likelihood = BandLikelihood(
+                N, sample_time_s=config.sample_time_s, band_rad_s=config.likelihood_band(),
+                scale_time_s=config.likelihood_scale_time_s(), lf_excess_limit=config.lf_excess_limit,
+                length_m=config.length_scale_m, noise_var=np.diag(R),
+                prior_wf_energy=(2.0 * wf_std[0] ** 2, (half_length * wf_std[2]) ** 2),
+                share_time_s=config.forgetting_time_s if math.isfinite(config.forgetting_time_s) else 400.0)
+        self._residual = np.zeros(3)
         self._bayes = config.weighting == "bayes"
         self._forgetting = (1.0 if math.isinf(config.forgetting_time_s)
                             else math.exp(-config.sample_time_s / config.forgetting_time_s))
@@ -430,6 +446,8 @@ class BankWaveFilter(_FrameFilter):
         if not self._initialized:
             self.p[:] = 1.0 / self.p.size
             self._log_w[:] = 0.0
+        if self.band_likelihood is not None:
+            self.band_likelihood.restart()   # the pose jump is no sea-state evidence
         self._initialized = True
         self._blend_and_write(_NONE)
         self.output.innovation[:] = 0.0
@@ -481,7 +499,7 @@ class BankWaveFilter(_FrameFilter):
             np.matmul(self.K[slot], eps[:, :, None], out=self._col)
             np.add(x, self._col[:, :, 0], out=x_post)
             if self.kind == "mmae":
-                self._update_weights(slot)
+                self._update_weights(slot, code)
         else:
             eps[:] = 0.0
             np.copyto(x_post, x)
@@ -526,10 +544,24 @@ class BankWaveFilter(_FrameFilter):
         yp = self._x_post[:, e0 + 1]
         return np.stack([c * xp - s * yp, s * xp + c * yp, ssa_array(self._x_post[:, e0 + 2])], axis=1)
 
-    def _update_weights(self, slot: int) -> None:
+    def _update_weights(self, slot: int, code: int) -> None:
         """Error measures m_i and the weight update (discrete Bayes or seed 000 eq. (18) DWSG)."""
         eps = self._eps
-        if self._common:
+        band = self.band_likelihood
+        forgetting = self._forgetting
+        if band is not None:
+            # band-limited, locally whitened, tempered (weighting.BandLikelihood); the memory runs on
+            # evidence time: a gated (invalid) period neither adds evidence nor forgets the old.
+            # y − η̂_LF (blended prior) = Σ p_i (ε_i + ξ2_i): the WF motion + noise, for the WF share
+            w0 = self.index.xi2.start  # type: ignore[union-attr]  (mmae always has wave states)
+            residual = self._residual
+            np.matmul(self.p, self.x[:, w0:w0 + 3], out=residual)
+            residual += np.matmul(self.p, eps, out=self._eps_bar)   # (_eps_bar is rewritten later)
+            if not band.update(eps, (code & _POSITION) == _POSITION, bool(code & _HEADING), residual):
+                return
+            np.copyto(self._log_l, band.log_l)
+            forgetting = forgetting ** float(band.gate.max())
+        elif self._common:
             # log L_i = −½ εᵢᵀ S̄⁻¹ εᵢ with the common diagonal S̄ (minimum-energy criterion).
             np.multiply(eps, eps, out=self._eps2)
             np.matmul(self._eps2, self._half_w_common[slot], out=self._log_l)
@@ -538,7 +570,7 @@ class BankWaveFilter(_FrameFilter):
             np.einsum("ni,nij,nj->n", eps, self._half_S_inv_own[slot], eps, out=self._log_l)
             self._log_l += self._log_beta_own[slot]
         if self._bayes:
-            bayes_step(self._log_w, self.p, self._log_l, forgetting=self._forgetting, log_floor=self._log_floor)
+            bayes_step(self._log_w, self.p, self._log_l, forgetting=forgetting, log_floor=self._log_floor)
         else:
             config = self.config
             dwsg_step(self.p, self._log_l, rate_per_s=config.dwsg_rate_per_s, dt_s=self.dt_s,
@@ -572,7 +604,9 @@ class BankWaveFilter(_FrameFilter):
     def state_dict(self) -> dict[str, Any]:
         state = self._frame_state()
         state.update({"omegas_rad_s": [float(w) for w in self.omegas], "x": self.x.tolist(),
-                      "weights": self.p.tolist()})
+                      "weights": self.p.tolist(), "log_weights": self._log_w.tolist()})
+        if self.band_likelihood is not None:
+            state["likelihood"] = self.band_likelihood.state_dict()
         return state
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -584,10 +618,23 @@ class BankWaveFilter(_FrameFilter):
         p = _finite_array(state.get("weights"), self.p.shape, "weights")
         if np.any(p < 0.0) or not math.isclose(float(p.sum()), 1.0, rel_tol=1e-6):
             raise ValueError("wave filter state: weights must be >= 0 and sum to 1")
+        log_w = None
+        if state.get("log_weights") is not None:
+            log_w = _finite_array(state.get("log_weights"), self.p.shape, "log_weights")
+            implied = np.exp(log_w - log_w.max())
+            if not np.allclose(implied / implied.sum(), p / p.sum(), rtol=1e-6, atol=1e-12):
+                raise ValueError("wave filter state: log_weights do not match weights")
+        band = self.band_likelihood
+        if band is not None and state.get("likelihood") is not None:
+            band.load_state_dict(state["likelihood"])      # ValueError before anything changed
+        elif band is not None:
+            band.restart()   # an older state: statistics rebuild while the restored weights hold
         self.x[:] = x
         self.p[:] = p / p.sum()
-        log_w = np.log(np.maximum(self.p, 1e-300))
-        self._log_w[:] = np.maximum(log_w - log_w.max(), self._log_floor)
+        if log_w is None:
+            log_w = np.log(np.maximum(self.p, 1e-300))
+            log_w = np.maximum(log_w - log_w.max(), self._log_floor)
+        self._log_w[:] = log_w
         self._psi_frame = float(state["psi_frame_rad"])
         self._initialized = bool(state.get("initialized", True))
         self._blend_and_write(_NONE)

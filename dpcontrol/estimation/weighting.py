@@ -1,7 +1,6 @@
 """Model-probability weights of the MMAE wave filter (seed 000 eq. (18), seed 001 eq. (42)).
 
-Two weight generators over a bank of N models, both fed with per-model log-likelihoods
-``log L_i = log β_i − m_i`` of the current innovations:
+Two weight generators over a bank of N models, both fed with per-model log-likelihoods ``log L_i``:
 
 * :func:`dwsg_step` — the dynamic weighting signal generator (DWSG) of seed 000 eq. (18)::
 
@@ -17,13 +16,54 @@ Two weight generators over a bank of N models, both fed with per-model log-likel
   ``p_i(k) ∝ p_i(k−1)^α L_i(k)`` with exponential forgetting ``α = exp(−dt / T_f)`` of past
   log-likelihoods (α = 1: pure Bayes), kept in the log domain (no underflow, no log per step).
 
-Why the Bayes form is the default (``WaveFilterConfig.weighting``): the DWSG is driven by the
-*instantaneous* likelihood ratio, ``d ln p_i/dt = λ (L_i/Σ p_j L_j − 1)``, linear in ``L`` — on a real
-sea, where neighbouring models differ by a few per cent in innovation energy and the per-sample
-error measures fluctuate by far more, a small λ makes the weights sluggish (the 0.9 rad/s model of
-seed 000 does not reach 0.9 in 300 s with λ = 1/s) and a large λ makes them follow the noise
-(arithmetic, not geometric, averaging of fluctuating likelihoods). The Bayes form sums
-log-likelihoods, so its log-odds grow with the accumulated evidence and are steady.
+and two ways to compute ``log L_i`` from the innovations ``ε_i`` of the bank (chosen by
+``WaveFilterConfig.likelihood_scale``):
+
+* per sample, ``log L_i = −½ εᵢᵀ S̄⁻¹ εᵢ`` with one fixed common S̄ (``"common"``), or seed 000's
+  ``−½ ln det S_i − ½ εᵢᵀ S_i⁻¹ εᵢ`` (``"own"``) — the textbook forms, right when the plant *is* the
+  design model (the unit tests on design-model data);
+* :class:`BandLikelihood` (``"band"``, the default) — the form that works in closed loop on a real
+  plant, see below.
+
+Why the per-sample forms fail in closed loop (measured on cs2-seed000, see the tests and the
+closed-loop report): the innovations of the bank on the nonlinear plant are 3–10× larger than the
+S the filters were designed with (unmodelled LF dynamics, thruster lag, a sea that is not the
+design model, mis-set noise intensities), and they are strongly coloured. ``−½ ε²/S̄`` then differs
+between models by tens of nats *per sample* (median spread 91 nats in the old cs2-seed000 sea), so
+each sample overturns the last: the weights chatter between models every second. And the
+differences that remain come mostly from outside the wave band — white sensor noise and the
+JONSWAP tail far above the peak (which favour the highest ω0), LF model mismatch while the filters
+converge or the vessel manoeuvres (which favours the lowest ω0, whose WF states absorb it) — not
+from how well each model explains the wave motion.
+
+:class:`BandLikelihood` therefore compares the models only on what distinguishes them, at a
+statistically honest rate:
+
+1. **Prediction-error prefilter** (Ljung 1999, *System Identification*, §14.4: a prefilter on the
+   prediction errors weights the model fit in frequency): each innovation channel passes a 2nd-order
+   Butterworth band-pass over the band the bank's seas occupy, ``[ω_1/2, 1.5·ω_N]`` by default (the
+   sea of the lowest model starts at ≈ 0.8·ω_1, a JONSWAP at the top model holds its energy up to
+   ≈ 1.5·ω_N).
+2. **Local whitening per channel group** (position; heading): the band-passed energies are divided
+   by a slowly varying common scale, the smallest short-window (``likelihood_time_s``) band energy
+   of the bank. The likelihood is then invariant to the absolute innovation level: mis-set noise
+   intensities, a bigger sea or a transient do not change how much one sample can say.
+3. **Tempering by the number of independent samples**: band-limited innovations carry about
+   ``B·h/π`` independent samples per sample of period h (Nyquist, B = band width in rad/s), so each
+   sample's log-likelihood is scaled by that factor instead of counting every correlated sample as
+   new evidence — the cause of the chatter.
+4. **LF-validity gate**: a correct LF model leaves no systematic low-frequency innovation; when the
+   energy below the band exceeds ``lf_excess_limit`` times what white innovations would put there
+   (filter convergence after a start, DP engagement, bias changes), the in-band innovations are
+   contaminated by that LF mismatch and the group's evidence is scaled down in proportion. The same
+   factor holds the weights while the statistics warm up after a start or a pose reset.
+5. **Channel groups weighted by their WF motion**: position and heading (the latter as the
+   displacement ``ψ·L/2`` of the hull ends, the plant's dominant-DOF rule) enter in proportion to the
+   share of the wave-frequency motion measured in each (band-passed ``y − η̂_LF`` minus the sensor
+   noise floor), so a DOF the waves hardly move (CyberShip II's yaw in long waves: share < 0.1 %)
+   cannot outvote the one they do, and the heading — often the cleanest channel on a full-scale ship
+   (the supply vessel's calm sea: 0.13° of WF yaw against a 0.05° gyro, 9 cm of WF surge against a
+   0.3 m DGPS) — counts when the waves yaw the vessel.
 
 Why weights must not lock (DESIGN.md §5, seed 001 Fig. 3): both generators drive the weight of a
 model that is worse *now* towards zero geometrically; once it underflows, no later evidence can
@@ -31,27 +71,28 @@ raise it (0 × anything = 0), so after a sea-state change the bank stays on the 
 remedies, both applied:
 
 * a **floor** relative to the leading model, ``p_i ≥ p_min · max_j p_j`` (then renormalised): the
-  log-odds of any model against the leader are bounded by ``ln(1/p_min)``, so the time to switch
-  after a change is bounded by the time the new evidence needs to overturn ``ln(1/p_min)`` nats
-  (DWSG: about ``ln(1/p_min) / (λ Δm)`` with Δm the mean difference of the error measures),
-  instead of growing without bound with the time spent in the previous sea state;
+  log-odds of any model against the leader are bounded by ``ln(1/p_min)``;
 * **forgetting** (Bayes form): the log-odds are an exponentially weighted sum of recent
   log-likelihood ratios with memory T_f, so they stay proportional to the evidence of the last
-  T_f seconds (bounded by ``max|Δ ln L| / (1 − α)``). That keeps the weights *soft* when
-  neighbouring models are nearly as good and bounds the switching time to a fraction of T_f.
+  T_f seconds. That keeps the weights *soft* when neighbouring models are nearly as good and bounds
+  the switching time to a fraction of T_f. With the band likelihood the memory runs on *evidence*
+  time (``α^γ`` per sample, γ the gate): a period the gate rejects neither adds nor forgets evidence.
 
-Defaults (T_f = 200 s, p_min = 10⁻⁶, measured in ``tests/unit/test_estimation_mmae.py``): on data
-from the seed 000 design model the right model's weight passes 0.9 within 20–60 s and stays there
-(T_f = 60 s lets it dip below 0.9 again in most runs); on seed 001's sea-state sequence every
-switch completes within ≈ 200 s. The floor then mostly guards against underflow; the forgetting does
-the unlocking.
+Why the Bayes form is the default (``WaveFilterConfig.weighting``): the DWSG is driven by the
+*instantaneous* likelihood ratio, ``d ln p_i/dt = λ (L_i/Σ p_j L_j − 1)``, linear in ``L`` — where
+neighbouring models differ by a few per cent a small λ makes the weights sluggish and a large λ
+makes them follow the noise. The Bayes form sums log-likelihoods, so its log-odds grow with the
+accumulated evidence.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
+from scipy.signal import butter, sosfilt
 
 _NEWTON_ITERATIONS = 8
 _NEWTON_TOLERANCE = 1e-12
@@ -142,3 +183,350 @@ def bayes_step(log_w: np.ndarray, p: np.ndarray, log_likelihood: np.ndarray, *, 
     np.maximum(log_w, log_floor, out=log_w)
     np.exp(log_w, out=p)
     p /= p.sum()
+
+
+# ------------------------------------------------------------------------------------------------
+# Band-limited, locally whitened, tempered likelihood (see the module docstring).
+
+_GROUPS = 2                # 0: position (north, east), 1: heading (as ψ·L/2)
+_CHANNEL_GROUP = np.array([[1.0, 0.0], [1.0, 0.0], [0.0, 1.0]])   # (channel, group) membership
+_MAX_GAP = 64              # a group silent for more control periods than this restarts its prefilters
+
+
+def _sos_noise_gain(sos: np.ndarray, settle_samples: int) -> float:
+    """Σ h[n]² of a digital filter in SOS form: its power gain for white noise (by the impulse response)."""
+    impulse = np.zeros(settle_samples)
+    impulse[0] = 1.0
+    return float(np.sum(sosfilt(sos, impulse) ** 2))
+
+
+def _cascade_state_space(sos: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """(A, B, C, D) of a cascade of biquads, each in direct form II transposed.
+
+    One section ``y = b0 x + z1; z1' = b1 x − a1 y + z2; z2' = b2 x − a2 y`` is
+    ``z' = [[−a1, 1], [−a2, 0]] z + [b1 − a1 b0, b2 − a2 b0] x``, ``y = z1 + b0 x``; the cascade feeds each
+    output to the next section (block lower-triangular A). The same arithmetic as ``sosfilt``, written
+    as one linear map so that a whole bank of channels advances in one batched matmul.
+    """
+    n_sec = sos.shape[0]
+    n = 2 * n_sec
+    A = np.zeros((n, n))
+    B = np.zeros(n)
+    C = np.zeros(n)
+    D = 1.0
+    for k in range(n_sec):
+        b0, b1, b2, _, a1, a2 = sos[k]
+        i = 2 * k
+        # input of section k = C·z + D·x of the cascade so far
+        A[i, :] += (b1 - a1 * b0) * C
+        A[i + 1, :] += (b2 - a2 * b0) * C
+        A[i, i] += -a1
+        A[i, i + 1] += 1.0
+        A[i + 1, i] += -a2
+        B[i] = (b1 - a1 * b0) * D
+        B[i + 1] = (b2 - a2 * b0) * D
+        C = b0 * C
+        C[i] += 1.0
+        D = b0 * D
+    return A, B, C, D
+
+
+class _Prefilter:
+    """Band-pass and below-band low-pass prefilters of one channel at one sample period.
+
+    Coefficients from ``scipy.signal.butter``; the two filters run in parallel as one state-space system
+    (outputs: band, low) so the whole bank advances in one batched matmul per period.
+    """
+
+    __slots__ = ("A", "B", "C", "D", "band_noise_gain", "band_width_rad_s", "white_ratio")
+
+    def __init__(self, band_rad_s: tuple[float, float], period_s: float, order: int) -> None:
+        nyquist = math.pi / period_s
+        lo, hi = band_rad_s
+        hi = min(hi, 0.9 * nyquist)
+        if not lo < hi:
+            raise ValueError(f"likelihood band [{lo:g}, {hi:g}] rad/s is empty at a sample period of {period_s:g} s")
+        fs = 2.0 * math.pi / period_s          # angular sampling frequency: band edges in rad/s
+        band_sos = butter(order, [lo, hi], btype="bandpass", fs=fs, output="sos")
+        low_sos = butter(order, lo, btype="lowpass", fs=fs, output="sos")
+        self.band_width_rad_s = hi - lo
+        settle = int(min(200_000, max(2_000, 60.0 * fs / lo)))
+        self.band_noise_gain = _sos_noise_gain(band_sos, settle)
+        # what white innovations would put below the band relative to inside it
+        self.white_ratio = _sos_noise_gain(low_sos, settle) / self.band_noise_gain
+        ab, bb, cb, db = _cascade_state_space(band_sos)
+        al, bl, cl, dl = _cascade_state_space(low_sos)
+        nb, nl = ab.shape[0], al.shape[0]
+        self.A = np.zeros((nb + nl, nb + nl))
+        self.A[:nb, :nb] = ab
+        self.A[nb:, nb:] = al
+        self.B = np.concatenate([bb, bl])
+        self.C = np.zeros((2, nb + nl))
+        self.C[0, :nb] = cb
+        self.C[1, nb:] = cl
+        self.D = np.array([db, dl])
+
+
+class BandLikelihood:
+    """Per-sample log-likelihoods of the bank from band-limited, locally whitened innovations.
+
+    See the module docstring for the five ingredients. Per sample of a channel group g (position:
+    north and east together; heading) with period h_g, the log-likelihood of model i is::
+
+        log L_i += −½ · λ_g · γ_g · (B_g h_g / π) · ẽ²_{g,i} / s_g
+
+    with ẽ the prefiltered innovations (heading scaled to metres by L/2), s_g the smallest short-window
+    band energy of the bank, B_g h_g/π the independent samples per sample, γ_g ∈ [0, 1] the
+    LF-validity gate times the warm-up factor, and λ_g the group's share of the WF motion. The WF
+    motion of a group is estimated from the data, not from the filters' WF states (those absorb
+    sensor noise in proportion to the tuning): the energy of the band-passed residual
+    ``y − η̂_LF`` (WF motion + noise) over ``share_time_s``, minus the noise floor ``R·(band noise
+    gain)``; until data arrive the design expectation ``prior_wf_energy`` stands in.
+
+    Everything is batched: the N innovation rows and the residual row of the three channels advance
+    through their prefilters in one state-space matmul, the statistics are (rows, groups, 2) arrays;
+    a group that is not measured this period keeps its states (decay 1, gain 0).
+
+    Parameters
+    ----------
+    n_models : int
+    sample_time_s : float
+        Control period dt [s]; a group sampled every m periods is filtered at h = m·dt.
+    band_rad_s : (float, float)
+        Prefilter pass band [rad/s].
+    scale_time_s : float
+        Time constant of the short-window statistics (whitening scale, gate, warm-up) [s].
+    lf_excess_limit : float
+        Largest low-frequency innovation energy, relative to white innovations, that still counts
+        as full evidence (``inf`` disables the gate).
+    length_m : float
+        Vessel length L: heading innovations count as the displacement ``ψ·L/2`` [m].
+    noise_var : sequence of 3 float
+        Measurement noise variance per sample, north/east/heading [m², m², rad²].
+    prior_wf_energy : sequence of 2 float
+        Expected WF motion energy of the position group (both axes) and of the heading group
+        (as ``ψ·L/2``) [m²], used until the data take over.
+    share_time_s : float
+        Time constant of the WF motion estimate [s].
+    order : int
+        Butterworth order of the prefilters.
+    """
+
+    def __init__(self, n_models: int, *, sample_time_s: float, band_rad_s: Sequence[float], scale_time_s: float,
+                 lf_excess_limit: float, length_m: float, noise_var: Sequence[float],
+                 prior_wf_energy: Sequence[float], share_time_s: float, order: int = 2) -> None:
+        lo, hi = float(band_rad_s[0]), float(band_rad_s[1])
+        if not 0.0 < lo < hi:
+            raise ValueError(f"likelihood band must satisfy 0 < low < high, got [{lo}, {hi}] rad/s")
+        self.band_rad_s = (lo, hi)
+        self.n_models = int(n_models)
+        self.dt_s = float(sample_time_s)
+        self.scale_time_s = float(scale_time_s)
+        self.share_time_s = float(share_time_s)
+        self.lf_excess_limit = float(lf_excess_limit)
+        self.order = int(order)
+        self.heading_scale_m = 0.5 * float(length_m)
+        noise = [float(v) for v in noise_var]
+        # noise variance of a group's residual, summed over its channels (heading in metres)
+        self._noise = (noise[0] + noise[1], noise[2] * self.heading_scale_m**2)
+        self._prior = (float(prior_wf_energy[0]), float(prior_wf_energy[1]))
+        self._filters: dict[int, _Prefilter] = {}
+        self._stacks: dict[tuple[int, int], tuple[np.ndarray, ...]] = {}
+        n_state = self._prefilter(1).A.shape[0]           # also checks the band at the control period
+        rows = self.n_models + 1                           # the bank's innovations + the residual row
+        self.state = np.zeros((rows, 3, 1, n_state))        # prefilter states per row and channel
+        self._state_new = np.zeros_like(self.state)
+        self._x = np.zeros((rows, 3))
+        self._out = np.zeros((rows, 3, 1, 2))               # (band, low) outputs
+        self._bx = np.zeros_like(self.state)
+        self._dx = np.zeros_like(self._out)
+        self._sq = np.zeros((rows, 3, 2))
+        self._energy = np.zeros((rows, _GROUPS, 2))         # per group: band, low energy
+        self.means = np.zeros((rows, _GROUPS, 2))           # short-window EWMA numerators
+        # per-group scalars as Python floats (cheaper than numpy scalars in the control loop)
+        self.weight_sum = [0.0, 0.0]                        # EWMA weight sums (warm-up 1 − e^{−t/T_s})
+        self.wf_mean = [0.0, 0.0]                           # EWMA numerator of the residual band energy
+        self.wf_weight = [0.0, 0.0]
+        self.wf_time_s = [0.0, 0.0]                         # data time behind it
+        self.steps_since = [0, 0]
+        self.wf_energy = [float(v) for v in self._prior]
+        self.wf_share = [v / max(sum(self.wf_energy), 1e-300) for v in self.wf_energy]
+        self.gate = np.zeros(_GROUPS)                       # last γ_g (diagnostics)
+        self.log_l = np.zeros(self.n_models)
+        self._decay = np.ones((1, _GROUPS, 1))
+        self._gain = np.zeros((1, _GROUPS, 1))
+        self._coef = np.zeros(_GROUPS)
+        self._work = np.zeros((rows, _GROUPS, 2))
+
+    # -- configuration ----------------------------------------------------------------------------
+    def _prefilter(self, gap: int) -> _Prefilter:
+        pre = self._filters.get(gap)
+        if pre is None:
+            pre = self._filters[gap] = _Prefilter(self.band_rad_s, gap * self.dt_s, self.order)
+        return pre
+
+    def _stack(self, gaps: tuple[int, int]) -> tuple[np.ndarray, ...]:
+        """Per-channel (Aᵀ, B, Cᵀ, D) stacks and the held-state mask for the groups' gaps (0: not measured)."""
+        stack = self._stacks.get(gaps)
+        if stack is None:
+            pres = [self._prefilter(max(gaps[g], 1)) for g in (0, 0, 1)]
+            At = np.stack([p.A.T for p in pres])                          # (3, s, s)
+            B = np.stack([p.B for p in pres])[:, None, :]                 # (3, 1, s)
+            Ct = np.stack([p.C.T for p in pres])                          # (3, s, 2)
+            D = np.stack([p.D for p in pres])[:, None, :]                 # (3, 1, 2)
+            active = np.array([gaps[g] > 0 for g in (0, 0, 1)])[None, :, None, None]
+            stack = self._stacks[gaps] = (At, B, Ct, D, active)
+        return stack
+
+    def restart(self) -> None:
+        """Forget prefilter states and short-window statistics (after a pose reset); the weights and the
+        WF share estimate (a property of the sea) are kept by the caller / here."""
+        self.state[...] = 0.0
+        self.means[...] = 0.0
+        self.weight_sum = [0.0, 0.0]
+        self.steps_since = [0, 0]
+        self.gate[:] = 0.0
+
+    # -- one period -------------------------------------------------------------------------------
+    def update(self, eps: np.ndarray, position: bool, heading: bool, residual: np.ndarray) -> bool:
+        """Filter this period's innovations and fill :attr:`log_l` (N,); False when there is no evidence.
+
+        Parameters
+        ----------
+        eps : ndarray, shape (N, 3)
+            Innovations of the bank, vessel-parallel [m, m, rad] (zero where not measured).
+        position, heading : bool
+            Which channel groups were measured this period.
+        residual : ndarray, shape (3,)
+            Measurement minus the blended LF pose estimate, vessel-parallel [m, m, rad] (WF motion +
+            noise), for the WF share λ_g.
+        """
+        self.log_l[:] = 0.0
+        measured = (position, heading)
+        since = self.steps_since
+        gaps = [0, 0]
+        for g in range(_GROUPS):
+            since[g] += 1
+            if measured[g]:
+                gap = since[g]
+                since[g] = 0
+                if gap > _MAX_GAP:          # a long silence: restart the group's filters
+                    self.state[:, _CHANNEL_GROUP[:, g] > 0] = 0.0
+                    self.means[:, g] = 0.0
+                    self.weight_sum[g] = 0.0
+                    gap = 1
+                gaps[g] = gap
+        if gaps == [0, 0]:
+            return False
+        At, B, Ct, D, active = self._stack((gaps[0], gaps[1]))
+        # inputs: rows 0..N−1 the bank's innovations, row N the residual; heading as ψ·L/2
+        x = self._x
+        x[:-1] = eps
+        x[-1] = residual
+        x[:, 2] *= self.heading_scale_m
+        xs = x[:, :, None, None]
+        # outputs y = C z + D x, then states z' = A z + B x (one batched matmul each)
+        np.matmul(self.state, Ct, out=self._out)
+        np.multiply(xs, D, out=self._dx)
+        self._out += self._dx
+        np.matmul(self.state, At, out=self._state_new)
+        np.multiply(xs, B, out=self._bx)
+        self._state_new += self._bx
+        np.copyto(self.state, self._state_new, where=active)
+        # group energies (band, low) and their short-window EWMAs; an unmeasured group: decay 1, gain 0
+        np.multiply(self._out[:, :, 0, :], self._out[:, :, 0, :], out=self._sq)
+        np.einsum("nco,cg->ngo", self._sq, _CHANNEL_GROUP, out=self._energy)
+        decay = self._decay
+        gain = self._gain
+        for g in range(_GROUPS):
+            a = math.exp(-gaps[g] * self.dt_s / self.scale_time_s) if gaps[g] else 1.0
+            decay[0, g, 0] = a
+            gain[0, g, 0] = 1.0 - a
+            self.weight_sum[g] = a * self.weight_sum[g] + (1.0 - a)
+        self.means *= decay
+        self.means += np.multiply(self._energy, gain, out=self._work)
+        used = False
+        n = self.n_models
+        for g in range(_GROUPS):
+            self._coef[g] = 0.0
+            if not gaps[g]:
+                continue
+            pre = self._prefilter(gaps[g])
+            self._share_update(g, gaps[g], pre)
+            weight = self.weight_sum[g]
+            band_means = self.means[:n, g, 0]
+            scale = float(band_means.min()) / weight
+            band_total = float(band_means.sum())
+            lam = self.wf_share[g]
+            if not (scale > 0.0 and band_total > 0.0 and lam > 0.0):
+                self.gate[g] = 0.0
+                continue
+            excess = float(self.means[:n, g, 1].sum()) / band_total / pre.white_ratio
+            gate = weight * min(1.0, self.lf_excess_limit / excess) if excess > 0.0 else weight
+            self.gate[g] = gate
+            kappa = pre.band_width_rad_s * gaps[g] * self.dt_s / math.pi
+            self._coef[g] = -0.5 * lam * gate * kappa / scale
+            used = True
+        if used:
+            np.matmul(self._energy[:n, :, 0], self._coef, out=self.log_l)
+        return used
+
+    def _share_update(self, g: int, gap: int, pre: _Prefilter) -> None:
+        """WF motion energy of group g from its band-passed residual, noise floor removed; λ."""
+        a = math.exp(-gap * self.dt_s / self.share_time_s)
+        self.wf_mean[g] = a * self.wf_mean[g] + (1.0 - a) * float(self._energy[-1, g, 0])
+        self.wf_weight[g] = a * self.wf_weight[g] + (1.0 - a)
+        measured = self.wf_mean[g] / self.wf_weight[g] - self._noise[g] * pre.band_noise_gain
+        # the data (a bias-corrected mean) replace the design expectation within the warm-up time
+        warm = 1.0 - math.exp(-self.wf_time_s[g] / self.scale_time_s)
+        self.wf_time_s[g] += gap * self.dt_s
+        energy = self.wf_energy
+        energy[g] = warm * max(measured, 0.0) + (1.0 - warm) * self._prior[g]
+        total = energy[0] + energy[1]
+        if total > 0.0:
+            self.wf_share = [energy[0] / total, energy[1] / total]
+
+    # -- persistence (a restart must not lose the evidence statistics: bumpless weights) ----------
+    _ARRAYS = ("state", "means", "gate")
+    _SCALARS = ("weight_sum", "wf_mean", "wf_weight", "wf_time_s", "wf_energy", "steps_since")
+
+    def state_dict(self) -> dict[str, Any]:
+        """JSON-able statistics and prefilter states."""
+        out: dict[str, Any] = {"band_rad_s": list(self.band_rad_s)}
+        for name in self._ARRAYS:
+            out[name] = getattr(self, name).tolist()
+        for name in self._SCALARS:
+            out[name] = list(getattr(self, name))
+        return out
+
+    def load_state_dict(self, state: Any) -> None:
+        """Restore :meth:`state_dict`; ValueError (nothing changed) if it does not fit this bank."""
+        if not isinstance(state, dict):
+            raise ValueError("likelihood state: expected a mapping")
+        band = state.get("band_rad_s")
+        try:
+            band_ok = len(band) == 2 and np.allclose(np.asarray(band, dtype=float), self.band_rad_s,
+                                                     rtol=1e-12, atol=0.0)
+        except (TypeError, ValueError):
+            band_ok = False
+        if not band_ok:
+            raise ValueError("likelihood state: band_rad_s differs from the configured band")
+        staged: dict[str, Any] = {}
+        for name in (*self._ARRAYS, *self._SCALARS):
+            current = getattr(self, name)
+            shape = current.shape if isinstance(current, np.ndarray) else (len(current),)
+            try:
+                value = np.array(state.get(name), dtype=float)
+            except (TypeError, ValueError):
+                raise ValueError(f"likelihood state: {name} is not numeric") from None
+            if value.shape != shape or not np.all(np.isfinite(value)) or (name in self._SCALARS
+                                                                           and np.any(value < 0.0)):
+                raise ValueError(f"likelihood state: {name} must be finite (>= 0 for counters) with shape {shape}")
+            staged[name] = value
+        for name in self._ARRAYS:
+            getattr(self, name)[...] = staged[name]
+        for name in self._SCALARS:
+            values = staged[name].tolist()
+            setattr(self, name, [int(v) for v in values] if name == "steps_since" else values)
+        total = sum(self.wf_energy)
+        self.wf_share = [v / total for v in self.wf_energy] if total > 0.0 else [0.5, 0.5]
