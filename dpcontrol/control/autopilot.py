@@ -8,6 +8,8 @@ with ``m = I_z − N_ṙ``. Control law, PID with reference and wind feed-forwar
 
     τ_N = −τ̂_wind + m (ṙ_d + r_d/T) − m (K_p ψ̃ + K_d r̃ + K_i ∫ψ̃ dt),   ψ̃ = ssa(ψ − ψ_d), r̃ = r − r_d
 
+(optionally ``− m b̂``, see "Bias compensation" below)
+
 which leaves the third-order error dynamics (eq. (65))
 ``r̃̇ + (1/T + K_d) r̃ + K_p ψ̃ + K_i ∫ψ̃ = 0`` (a constant bias is removed by the integral). The
 gains place its poles at ``(s² + 2ζω_n s + ω_n²)(s + ω_i)`` with ``ω_i = ω_n/10``:
@@ -17,6 +19,16 @@ gains place its poles at ``(s² + 2ζω_n s + ω_n²)(s + ω_i)`` with ``ω_i = 
 The rudder command is ``δ = τ_N / N_δ`` (eq. (67)), limited in angle and rate. Anti-windup:
 conditional integration — while the rudder is limited the integrator does not integrate further
 in the direction that pushes it deeper into the limit.
+
+Bias compensation: the course-keeping filter estimates the bias ``b`` of eq. (72) (the slowly
+varying yaw moment of waves, wind and current per unit inertia). Seed 002 notes that the filter's
+bias estimate "can be used in the controller to implement integral action"; with
+``bias_feedforward`` the law also subtracts ``m b̂`` (passed as ``tau_bias_n_nm``), as the DP
+controllers do with their bias (τ = u − b̂). The integrator stays: it removes what the filter's
+model gets wrong (K, T), and in steady state with a consistent filter it settles at zero (the
+filter's ψ̂ is stationary only when ``(K/T)δ + b̂ = 0``, which the law reaches at ψ̃ = 0). Without
+it, a wave drift moment worth a few degrees of rudder (the seed 002 sea) pushes the ship off
+course by ``δ_b/(K_p T/K)`` until the slow integrator (``ω_i = ω_n/10``) has caught up.
 """
 
 from __future__ import annotations
@@ -50,6 +62,8 @@ class AutopilotConfig:
         Rudder angle limit [rad].
     rudder_rate_radps : float or None
         Rudder rate limit [rad/s] (None: unlimited).
+    bias_feedforward : bool
+        Subtract the estimated bias moment ``tau_bias_n_nm`` given to :meth:`HeadingAutopilot.step`.
     """
 
     inertia_kgm2: float
@@ -60,6 +74,7 @@ class AutopilotConfig:
     integral_ratio: float = 0.1
     rudder_max_rad: float = math.radians(35.0)
     rudder_rate_radps: float | None = None
+    bias_feedforward: bool = True
 
     def __post_init__(self) -> None:
         for name in ("inertia_kgm2", "nomoto_gain_per_s", "nomoto_time_constant_s", "natural_frequency_radps",
@@ -91,8 +106,8 @@ class AutopilotConfig:
         return kp, kd, ki
 
     @staticmethod
-    def for_vessel(vessel: VesselData, natural_frequency_radps: float = 0.05, relative_damping: float = 0.8
-                   ) -> AutopilotConfig:
+    def for_vessel(vessel: VesselData, natural_frequency_radps: float = 0.05, relative_damping: float = 0.8,
+                   bias_feedforward: bool = True) -> AutopilotConfig:
         """Autopilot for a vessel with Nomoto data and a rudder (the mariner: seed 002).
 
         ``m`` is the yaw entry of the design mass matrix; the rudder limits come from the first
@@ -111,6 +126,7 @@ class AutopilotConfig:
             relative_damping=relative_damping,
             rudder_max_rad=rudder.rudder_max_angle_rad,
             rudder_rate_radps=rudder.azimuth_rate_limit_radps,
+            bias_feedforward=bias_feedforward,
         )
 
 
@@ -156,7 +172,8 @@ class HeadingAutopilot:
         return self._config
 
     def step(self, dt_s: float, psi_hat_rad: float, r_hat_radps: float, psi_d_rad: float, *, r_d_radps: float = 0.0,
-             r_dot_d_radps2: float = 0.0, tau_wind_n_nm: float | None = None) -> AutopilotOutput:
+             r_dot_d_radps2: float = 0.0, tau_wind_n_nm: float | None = None,
+             tau_bias_n_nm: float | None = None) -> AutopilotOutput:
         """One control period.
 
         Parameters
@@ -170,12 +187,17 @@ class HeadingAutopilot:
             :class:`~dpcontrol.guidance.reference_model.ReferenceModel`).
         tau_wind_n_nm : float, optional
             Estimated wind yaw moment ``τ̂_wind`` (eq. (66)) [N·m].
+        tau_bias_n_nm : float, optional
+            Estimated bias moment ``m b̂`` (eq. (72)) [N·m]; subtracted when the config's
+            ``bias_feedforward`` is on (see the module docstring), ignored otherwise.
         """
         values = (dt_s, psi_hat_rad, r_hat_radps, psi_d_rad, r_d_radps, r_dot_d_radps2)
         if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in values) or dt_s <= 0.0:
             raise ValueError(f"autopilot inputs must be finite numbers with dt_s > 0, got {values!r}")
         if tau_wind_n_nm is not None and not math.isfinite(tau_wind_n_nm):
             raise ValueError("tau_wind_n_nm must be finite")
+        if tau_bias_n_nm is not None and not math.isfinite(tau_bias_n_nm):
+            raise ValueError("tau_bias_n_nm must be finite")
         cfg = self._config
         psi_err = ssa(psi_hat_rad - psi_d_rad)
         r_err = r_hat_radps - r_d_radps
@@ -183,6 +205,8 @@ class HeadingAutopilot:
         tau = feedforward - self._m * (self._kp * psi_err + self._kd * r_err + self._ki * self._integral)  # (64)
         if tau_wind_n_nm is not None:
             tau -= tau_wind_n_nm
+        if tau_bias_n_nm is not None and cfg.bias_feedforward:
+            tau -= tau_bias_n_nm
         demand = tau / self._n_delta  # (67)
         rudder = min(max(demand, -cfg.rudder_max_rad), cfg.rudder_max_rad)
         if cfg.rudder_rate_radps is not None:

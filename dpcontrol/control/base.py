@@ -41,7 +41,9 @@ class ControlOutput:
         ``ν̂ − Rᵀ(ψ̂) η̇_d`` ``[m/s, m/s, rad/s]``.
     parameters : mapping of str to float, or None
         MRAC parameter estimates (``mass_surge_kg``, ``mass_sway_kg``, ``inertia_yaw_kgm2``,
-        ``damping_surge_nspm``, ``damping_sway_nspm``, ``damping_yaw_nmsprad``); None for PID.
+        ``damping_surge_nspm``, ``damping_sway_nspm``, ``damping_yaw_nmsprad``) and the pose of its
+        reference model ``y_M`` at this step in NED (``ref_model_north_m``, ``ref_model_east_m``,
+        ``ref_model_heading_rad``); None for PID.
     """
 
     tau_b: np.ndarray

@@ -33,6 +33,14 @@ makes the mass estimate drift upwards without bound — the classical parameter 
 control (in the single-DOF tanker case with 0.25 m of WF surge motion the pure law takes â₂
 from 1× to 3× the true mass in 12 h of station keeping). This implementation uses
 
+* the **reference-model regressor** (default, ``regressor: reference``): the law adapts with
+  ``v_M = [ÿ_M, ẏ_M]ᵀ`` of the noise-free reference model instead of ``v = [z, ẏ]ᵀ``,
+  ``â̇ = −Γ v_M bᵀG x`` — the "desired compensation" adaptation law of Sadegh & Horowitz (1990).
+  ``v − v_M = [−β₁ė − β₀e, ė]`` is of the order of the tracking error, so the law is the same where
+  the MRAC tracks, but the regressor no longer carries the estimator's noise and the correlation
+  above is gone. On the plant (3-DOF tanker, lockstep, 3 h of seed 003's schedule) the plant
+  regressor took â₂ to +55 % of the true mass, the reference regressor keeps it within ±10 %.
+  ``regressor: plant`` gives seed 003's eq. (21);
 * **excitation gating**: ``â₂`` adapts only while the reference model accelerates,
   ``|ÿ_M| > a_min`` (and ``â₁`` only while ``|ẏ_M| > v_min``), measured on the noise-free
   reference model: the information about the mass is in the reference acceleration, and while
@@ -57,6 +65,26 @@ The adaptive law is integrated with the error signals held over the sample (zero
 which is the exact integral of (21) for piecewise-constant signals, followed by the projection;
 the reference model (15) is discretised exactly (matrix exponential, cached per ``dt``).
 
+Damping: â₁ is not adapted by default in the runtime configuration (``Γ₂₂ = 0``, configurable). At
+DP speeds the damping hardly shows in a set-point move (seed 003 Fig. 11: "an oscillatory
+behavior was found in damping estimation ... damping effect in surge motion is extremely small"),
+and on the plant the current drag, which depends on the speed through the water, drove â₁ to its
+lower bound and the mass estimate, which shares the error signal, 30 % high.
+
+Reference excitation: in the runtime the MRAC reference model is driven by the guidance
+(:class:`~dpcontrol.guidance.reference_model.ReferenceModel`, third order with speed and acceleration
+limits), not by seed 003's raw set-point steps, and a move excites it far less (tanker, 20 m:
+max ÿ_M = 1.8·10⁻³ instead of β₀ℓ = 2·10⁻² m/s²). :func:`default_mrac_config` therefore scales Γ by
+the excitation energy of a typical move through the vessel's default guidance
+(:func:`reference_excitation`) and sets the gating thresholds from that move;
+``step_driven=True`` keeps the step design (the single-DOF study of
+:mod:`dpcontrol.control.offloading_case`).
+
+In the runtime (:mod:`dpcontrol.runtime.step`) an adapting MRAC also hands its mass estimate to the
+DP wave filter between moves (:class:`~dpcontrol.runtime.estimators.MassAdaptiveEstimator`): a filter
+on the ballast model misleads the adaptation as the tanker fills. :attr:`MracController.excited`
+tells when the gate is closed.
+
 Adaptation gains: at the frequencies a step excites (around ω_M) the error filter
 ``1/(s² + β₁s + β₀)`` puts ``ė`` in phase with ``z``, and ``g₂₂ ≈ q_e/(2β₀β₁)`` dominates
 ``bᵀGx``; averaging ``z²`` over the ≈ 3/ω_M a reference step of ``ℓ`` metres takes
@@ -67,6 +95,7 @@ constant ``T_a``: ``Γ₁₁ = 96 ζ m_nom / (q_e ℓ² T_a)``, ``Γ₂₂ = β�
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -77,13 +106,17 @@ from scipy.linalg import expm, solve_continuous_lyapunov
 
 from dpcontrol.control.base import ALL_DOFS, ControlOutput, check_dt, dof_mask, floats3
 from dpcontrol.control.pid import default_natural_period_s
-from dpcontrol.guidance.reference_model import Reference
+from dpcontrol.guidance.reference_model import Reference, ReferenceModel, ReferenceModelConfig, default_reference_config
 from dpcontrol.models.frames import ssa
 from dpcontrol.models.schema import ConfigError, Section, check_vector
 from dpcontrol.models.vessels import VesselData
 
 PARAMETER_NAMES: tuple[str, ...] = ("mass_surge_kg", "mass_sway_kg", "inertia_yaw_kgm2",
                                     "damping_surge_nspm", "damping_sway_nspm", "damping_yaw_nmsprad")
+REGRESSORS: tuple[str, ...] = ("reference", "plant")
+#: Reference-model outputs added to :attr:`ControlOutput.parameters` by :meth:`MracController.step`: the
+#: state ``y_M`` of eq. (15) in NED at the step's time (the pose the vessel is made to track).
+REFERENCE_MODEL_NAMES: tuple[str, ...] = ("ref_model_north_m", "ref_model_east_m", "ref_model_heading_rad")
 _SATURATION_TOLERANCE = 1e-6
 Triple = tuple[float, float, float]
 
@@ -126,6 +159,13 @@ class MracConfig:
         relative to ``damping_nominal`` (lower bound 0; upper at least ``m_nom β₁``).
     leakage_per_s : float
         σ of the σ-modification (0 = off) [1/s].
+    regressor : {"reference", "plant"}
+        Regressor of the adaptive law: ``"reference"`` (default) ``v_M = [ÿ_M, ẏ_M]ᵀ`` of the noise-free
+        reference model (desired-compensation law), ``"plant"`` seed 003's ``v = [z, ẏ]ᵀ`` of eq. (21); see
+        the module docstring.
+    adapt : bool
+        False freezes the parameters at the nominal values: the fixed-gain PD of seed 003 eq. (25)
+        (config ``control: {kind: mrac, adapt: false}``, the comparison case of seed 003 Fig. 13).
     """
 
     mass_nominal: Triple
@@ -141,6 +181,8 @@ class MracConfig:
     mass_bounds_factor: tuple[float, float] = (0.3, 5.0)
     damping_bounds_factor: tuple[float, float] = (0.0, 20.0)
     leakage_per_s: float = 0.0
+    adapt: bool = True
+    regressor: str = "reference"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "mass_nominal", _triple("mass_nominal", self.mass_nominal))
@@ -165,6 +207,10 @@ class MracConfig:
         object.__setattr__(self, "damping_bounds_factor", (dlo, dhi))
         if not (math.isfinite(self.leakage_per_s) and self.leakage_per_s >= 0.0):
             raise ValueError(f"leakage_per_s must be finite and >= 0, got {self.leakage_per_s!r}")
+        if not isinstance(self.adapt, bool):
+            raise ValueError(f"adapt must be true or false, got {self.adapt!r}")
+        if self.regressor not in REGRESSORS:
+            raise ValueError(f"regressor must be one of {REGRESSORS}, got {self.regressor!r}")
 
     @property
     def beta0(self) -> np.ndarray:
@@ -180,8 +226,8 @@ class MracConfig:
 
 def adaptation_gains(mass_nominal: Sequence[float], natural_period_s: Sequence[float],
                      relative_damping: Sequence[float], excitation: Sequence[float], *,
-                     adaptation_time_constant_s: float, lyapunov_q: tuple[float, float] = (1.0, 1.0)
-                     ) -> tuple[Triple, Triple]:
+                     adaptation_time_constant_s: float, lyapunov_q: tuple[float, float] = (1.0, 1.0),
+                     excitation_energy: Sequence[float] | None = None) -> tuple[Triple, Triple]:
     """Default Γ₁₁, Γ₂₂ per DOF from an adaptation time constant (see the module docstring).
 
     Parameters
@@ -195,37 +241,119 @@ def adaptation_gains(mass_nominal: Sequence[float], natural_period_s: Sequence[f
     excitation : 3 floats
         Typical reference excursion ℓ [m, m, rad].
     adaptation_time_constant_s : float
-        T_a [s].
+        T_a [s], for a reference model driven by a step of ℓ.
+    excitation_energy : 3 floats, optional
+        ``∫ ÿ_M² dt`` of the typical move as the reference model actually sees it [m²/s³, rad²/s³]
+        (:func:`reference_excitation`). A step of ℓ gives ``ℓ² ω_M³ / 4`` (ζ = 1); a smoother input
+        (the guidance in front of the MRAC) gives less, and Γ is raised by the ratio so that one move
+        teaches the estimate as much as one step would (the learning per move is ∝ Γ ∫ z² dt).
     """
     gm = []
     gc = []
-    for m, t, zeta, ell in zip(mass_nominal, natural_period_s, relative_damping, excitation, strict=True):
-        beta0 = (2.0 * math.pi / t) ** 2
+    energies = excitation_energy if excitation_energy is not None else (None, None, None)
+    for m, t, zeta, ell, energy in zip(mass_nominal, natural_period_s, relative_damping, excitation, energies,
+                                       strict=True):
+        omega = 2.0 * math.pi / t
+        beta0 = omega**2
         base = 96.0 * zeta * m / (adaptation_time_constant_s * lyapunov_q[0] * ell * ell)
+        if energy is not None:
+            base *= ell * ell * omega**3 / 4.0 / energy
         gm.append(base)
         gc.append(base * beta0)
     return (gm[0], gm[1], gm[2]), (gc[0], gc[1], gc[2])
 
 
+@dataclass(frozen=True)
+class ReferenceExcitation:
+    """What the MRAC reference model does during a typical move (per DOF: surge, sway, yaw).
+
+    Attributes
+    ----------
+    energy : 3 floats
+        ``∫ ÿ_M² dt`` [m²/s³, m²/s³, rad²/s³].
+    peak_accel : 3 floats
+        ``max |ÿ_M|`` [m/s², m/s², rad/s²].
+    peak_velocity : 3 floats
+        ``max |ẏ_M|`` [m/s, m/s, rad/s].
+    """
+
+    energy: Triple
+    peak_accel: Triple
+    peak_velocity: Triple
+
+
+@functools.lru_cache(maxsize=32)
+def reference_excitation(guidance: ReferenceModelConfig, natural_period_s: Triple, relative_damping: Triple,
+                         excitation: Triple) -> ReferenceExcitation:
+    """The MRAC reference model (15) driven by the guidance's answer to a set-point step of ℓ.
+
+    The runtime drives the MRAC reference model with the output of the guidance
+    (:class:`~dpcontrol.guidance.reference_model.ReferenceModel`: third order, speed and acceleration
+    limits), not with the raw set-point steps of seed 003: the cascade is smoother and its ÿ_M far
+    smaller (for the shuttle tanker and a 20 m move 1.8·10⁻³ m/s² instead of β₀ℓ = 2·10⁻² m/s²).
+    Gains and gating thresholds designed for a step would then adapt ≈ 100× too slowly (seed 003's
+    mass estimate would not keep up with the loading). Simulated once per configuration (cached):
+    north and heading moved together (independent channels; sway is surge's mirror image).
+    """
+    model = ReferenceModel(guidance)
+    model.reset(np.zeros(3))
+    dofs = (0, 2)  # surge (north at ψ = 0) and yaw; sway = surge by symmetry
+    period = max(*natural_period_s, *guidance.natural_period_s)
+    dt = min(*natural_period_s, *guidance.natural_period_s) / 100.0
+    steps = math.ceil(10.0 * period / dt)
+    phi = {}
+    for i in dofs:
+        beta0 = (2.0 * math.pi / natural_period_s[i]) ** 2
+        beta1 = 2.0 * relative_damping[i] * 2.0 * math.pi / natural_period_s[i]
+        a = np.array([[0.0, 1.0, 0.0], [-beta0, -beta1, beta0], [0.0, 0.0, 0.0]])
+        phi[i] = (expm(a * dt), beta0, beta1)
+    target = np.array([excitation[0], 0.0, excitation[2]])
+    energy = [0.0, 0.0, 0.0]
+    peak_a = [0.0, 0.0, 0.0]
+    peak_v = [0.0, 0.0, 0.0]
+    state = {i: np.zeros(3) for i in dofs}  # [y_M, ẏ_M, r] per DOF
+    for _ in range(steps):
+        r = model.step(dt, target).eta_d_n
+        for i in dofs:
+            x = state[i]
+            e, beta0, beta1 = phi[i]
+            x[2] = r[i]
+            accel = beta0 * (x[2] - x[0]) - beta1 * x[1]
+            energy[i] += accel * accel * dt
+            peak_a[i] = max(peak_a[i], abs(accel))
+            peak_v[i] = max(peak_v[i], abs(x[1]))
+            state[i] = e @ x
+    return ReferenceExcitation(energy=(energy[0], energy[0], energy[2]), peak_accel=(peak_a[0], peak_a[0], peak_a[2]),
+                               peak_velocity=(peak_v[0], peak_v[0], peak_v[2]))
+
+
 # Default tuning (see default_mrac_config): excitation ℓ = 0.08 L in surge/sway (≈ the 20 m
-# corrections of seed 003 for the 260 m tanker) and 10° in yaw; T_a = 0.1 natural periods (the
-# estimate settles within one set-point correction); dead zone 0.02 % of L (5 cm for the tanker)
-# and 0.05° in yaw — above the LF-estimate noise the wave filter leaves; gating thresholds 5 % of
-# the peak reference acceleration β₀ℓ and velocity ω_M ℓ/e of an ℓ step.
+# corrections of seed 003 for the 260 m tanker) and 10° in yaw, passed through the vessel's default
+# guidance; T_a = 0.1 natural periods for a step-driven model (the estimate settles within one
+# set-point correction) and 0.3 through the guidance (on the plant one correction's information is
+# noisy — estimator noise, wave drift — and averaging over ≈ 3 corrections halves the scatter of
+# the estimate while the 12 h loading changes the mass by only 4 % per correction); dead zone
+# 0.02 % of L (5 cm for the tanker) and 0.05° in yaw — above the LF-estimate noise the wave filter
+# leaves; gating thresholds 5 % of the peak reference-model acceleration and velocity of that move.
 _EXCITATION_PER_LENGTH = 0.08
 _EXCITATION_YAW_RAD = math.radians(10.0)
 _ADAPTATION_PERIODS = 0.1
+_ADAPTATION_PERIODS_GUIDED = 0.3
 _DEAD_ZONE_PER_LENGTH = 2e-4
 _DEAD_ZONE_YAW_RAD = math.radians(0.05)
 _GATING_FRACTION = 0.05
 
 
-def default_mrac_config(vessel: VesselData, natural_period_s: float | None = None) -> MracConfig:
+def default_mrac_config(vessel: VesselData, natural_period_s: float | None = None,
+                        guidance: ReferenceModelConfig | None = None, *, step_driven: bool = False) -> MracConfig:
     """MRAC defaults for a vessel: nominal parameters from diag(M), diag(D), seed 003 reference model.
 
     The reference-model period is 200 s for the shuttle tankers (seed 003) and the Froude-scaled
     150 s × √(L/100 m) otherwise (as :func:`dpcontrol.control.pid.default_natural_period_s`);
-    ζ = 1; Γ from :func:`adaptation_gains` with the constants above.
+    ζ = 1; Γ from :func:`adaptation_gains` with the constants above and the excitation of a typical
+    move through ``guidance`` (default: the vessel's :func:`default_reference_config`), see
+    :func:`reference_excitation`. ``step_driven``: the reference model is driven by the raw set-point
+    steps, as in seed 003's single-DOF study (:mod:`dpcontrol.control.offloading_case`), not by a guidance.
     """
     period = float(natural_period_s) if natural_period_s is not None else default_natural_period_s(vessel)
     periods = (period, period, period)
@@ -234,11 +362,22 @@ def default_mrac_config(vessel: VesselData, natural_period_s: float | None = Non
     length = vessel.length_m
     excitation = (_EXCITATION_PER_LENGTH * length, _EXCITATION_PER_LENGTH * length, _EXCITATION_YAW_RAD)
     zetas = (1.0, 1.0, 1.0)
-    gain_m, gain_c = adaptation_gains(mass, periods, zetas, excitation,
-                                      adaptation_time_constant_s=_ADAPTATION_PERIODS * period)
-    omega = 2.0 * math.pi / period
-    accel = tuple(_GATING_FRACTION * omega**2 * ell for ell in excitation)
-    velocity = tuple(_GATING_FRACTION * omega * ell / math.e for ell in excitation)
+    if step_driven:
+        # a step of ℓ: ÿ_M peaks at β₀ℓ, ẏ_M at ω_M ℓ/e (ζ = 1); Γ as designed for it
+        omega = 2.0 * math.pi / period
+        gain_m, gain_c = adaptation_gains(mass, periods, zetas, excitation,
+                                          adaptation_time_constant_s=_ADAPTATION_PERIODS * period)
+        accel = tuple(_GATING_FRACTION * omega**2 * ell for ell in excitation)
+        velocity = tuple(_GATING_FRACTION * omega * ell / math.e for ell in excitation)
+    else:
+        moves = reference_excitation(guidance if guidance is not None else default_reference_config(vessel),
+                                     periods, zetas, excitation)
+        gain_m, _ = adaptation_gains(mass, periods, zetas, excitation,
+                                     adaptation_time_constant_s=_ADAPTATION_PERIODS_GUIDED * period,
+                                     excitation_energy=moves.energy)
+        gain_c = (0.0, 0.0, 0.0)  # damping not adapted by default (see the module docstring)
+        accel = tuple(_GATING_FRACTION * a for a in moves.peak_accel)
+        velocity = tuple(_GATING_FRACTION * v for v in moves.peak_velocity)
     return MracConfig(
         mass_nominal=mass,  # type: ignore[arg-type]
         damping_nominal=damping,  # type: ignore[arg-type]
@@ -258,7 +397,9 @@ def mrac_config_from_mapping(value: object, vessel: VesselData, path: str = "con
     Keys (optional): ``natural_period_s`` (number), ``relative_damping``, ``mass_nominal``,
     ``damping_nominal``, ``adaptation_gain_mass``, ``adaptation_gain_damping``, ``dead_zone``,
     ``accel_threshold``, ``velocity_threshold`` (number or 3 numbers; yaw in rad), ``lyapunov_q``
-    (2), ``mass_bounds_factor`` (2), ``damping_bounds_factor`` (2), ``leakage_per_s``.
+    (2), ``mass_bounds_factor`` (2), ``damping_bounds_factor`` (2), ``leakage_per_s``, ``regressor``
+    (``reference`` | ``plant``), ``adapt``
+    (bool, default true; false = the fixed PD of seed 003 eq. (25) at ``mass_nominal``).
     """
     section = Section.of(value, path)
     section.string("kind", "mrac", choices=("mrac",))
@@ -278,6 +419,8 @@ def mrac_config_from_mapping(value: object, vessel: VesselData, path: str = "con
             raw = [raw] * length
         kwargs[key] = tuple(float(v) for v in check_vector(raw, f"{section.path}.{key}", length))
     kwargs["leakage_per_s"] = section.number("leakage_per_s", 0.0, minimum=0.0)
+    kwargs["adapt"] = section.boolean("adapt", True)
+    kwargs["regressor"] = section.string("regressor", "reference", choices=REGRESSORS)
     try:
         config = MracConfig(**{**base.__dict__, **kwargs})
     except ValueError as error:
@@ -293,9 +436,10 @@ class MracController:
     ----------
     config : MracConfig
         Nominal parameters, reference model, adaptation gains and robustness settings.
-    adapt : bool
-        False freezes the parameters: the controller is then the fixed-gain PD of seed 003
-        eq. (25) at ``mass_nominal`` (the comparison case of seed 003 Fig. 13).
+    adapt : bool, optional
+        Overrides ``config.adapt``. False freezes the parameters: the controller is then the
+        fixed-gain PD of seed 003 eq. (25) at ``mass_nominal`` (the comparison case of seed 003
+        Fig. 13).
 
     Notes
     -----
@@ -303,9 +447,11 @@ class MracController:
     that is several times faster than numpy calls on 3-vectors (measured ≈ 11 µs vs ≈ 40 µs per step).
     """
 
-    def __init__(self, config: MracConfig, adapt: bool = True) -> None:
+    def __init__(self, config: MracConfig, adapt: bool | None = None) -> None:
         self._config = config
-        self._adapt = bool(adapt)
+        self._adapt = config.adapt if adapt is None else bool(adapt)
+        self._reference_regressor = config.regressor == "reference"
+        self._excited = [False, False, False]
         self._beta0 = [float(v) for v in config.beta0]
         self._beta1 = [float(v) for v in config.beta1]
         q = np.diag(config.lyapunov_q)
@@ -345,6 +491,16 @@ class MracController:
     @property
     def config(self) -> MracConfig:
         return self._config
+
+    @property
+    def adapting(self) -> bool:
+        """Whether the parameters adapt (False: the fixed PD of seed 003 eq. (25))."""
+        return self._adapt
+
+    @property
+    def excited(self) -> tuple[bool, bool, bool]:
+        """Per DOF: the reference model excited the mass adaptation at the last step (gate open)."""
+        return (self._excited[0], self._excited[1], self._excited[2])
 
     @property
     def mass_hat(self) -> np.ndarray:
@@ -396,6 +552,9 @@ class MracController:
         The reference model is initialised at the estimate on the first step after
         construction or :meth:`reset` (bumpless), is driven by ``reference.eta_d_n`` and advanced
         by ``dt_s`` after the control is computed. ``bias_hat_b`` (None = 0) is compensated.
+        ``parameters`` of the output holds the estimates (:data:`PARAMETER_NAMES`) and the
+        reference-model pose ``y_M`` at this step (:data:`REFERENCE_MODEL_NAMES`), the pose the
+        tracking error ``e = y − y_M`` of eq. (17) is measured against.
         """
         dt = check_dt(dt_s)
         eta = floats3("eta_hat_n", eta_hat_n)
@@ -430,6 +589,10 @@ class MracController:
         if self._adapt:
             self._adaptation(dt, (z, nu, yd_b, ydd_b), e_b, ed_b, mask)
         self._last_command_b = tau
+        outputs = self.parameters()
+        outputs["ref_model_north_m"] = y_m[0]
+        outputs["ref_model_east_m"] = y_m[1]
+        outputs["ref_model_heading_rad"] = y_m[2]
 
         # advance the reference model over the sample (exact ZOH discretisation of (15))
         self._discretise(dt)
@@ -441,12 +604,13 @@ class MracController:
             y_m[i] = y_new
         y_m[2] = ssa(y_m[2])
         return ControlOutput(tau_b=np.array(tau), error_b=np.array(e_b), velocity_error_b=np.array(ed_b),
-                             parameters=self.parameters())
+                             parameters=outputs)
 
     def _adaptation(self, dt: float, regressor: tuple[Sequence[float], ...], e_b: Sequence[float],
                     e_dot_b: Sequence[float], mask: tuple[bool, bool, bool]) -> None:
         """Eq. (21) with gating, dead zone, optional leakage and projection; ``regressor = (z, ẏ, ẏ_M, ÿ_M)``."""
         z, nu, yd_m_b, ydd_m_b = regressor
+        self._excited[:] = (False, False, False)
         achieved = self._last_achieved_b
         command = self._last_command_b
         sigma = self._config.leakage_per_s
@@ -460,8 +624,13 @@ class MracController:
             excess = abs(s_bar) - self._dead_zone[i]
             s = self._g12[i] * math.copysign(excess, s_bar) if excess > 0.0 else 0.0
             # (21), each parameter only while the reference model excites it
-            rate2 = -self._gamma_m[i] * z[i] * s if abs(ydd_m_b[i]) > self._accel_threshold[i] else 0.0
-            rate1 = -self._gamma_c[i] * nu[i] * s if abs(yd_m_b[i]) > self._velocity_threshold[i] else 0.0
+            if self._reference_regressor:  # desired-compensation law: v_M = [ÿ_M, ẏ_M] instead of v = [z, ẏ]
+                v2, v1 = ydd_m_b[i], yd_m_b[i]
+            else:
+                v2, v1 = z[i], nu[i]
+            self._excited[i] = abs(ydd_m_b[i]) > self._accel_threshold[i]
+            rate2 = -self._gamma_m[i] * v2 * s if abs(ydd_m_b[i]) > self._accel_threshold[i] else 0.0
+            rate1 = -self._gamma_c[i] * v1 * s if abs(yd_m_b[i]) > self._velocity_threshold[i] else 0.0
             for values, gamma, rate, nominal in ((self._a2, self._gamma_m[i], rate2, self._a2_nominal[i]),
                                                  (self._a1, self._gamma_c[i], rate1, self._a1_nominal[i])):
                 k = sigma * gamma

@@ -30,13 +30,13 @@ from typing import Any
 import numpy as np
 
 from dpcontrol.allocation import AllocationResult, ThrustAllocator
-from dpcontrol.control import ALL_DOFS, HEADING_ONLY, AutopilotConfig, HeadingAutopilot, make_controller
+from dpcontrol.control import ALL_DOFS, HEADING_ONLY, AutopilotConfig, HeadingAutopilot, MracController, make_controller
 from dpcontrol.estimation import WaveFilterOutput
 from dpcontrol.guidance import Reference, ReferenceModel
 from dpcontrol.models.frames import body_to_ned
 from dpcontrol.runtime.alarms import AlarmRegistry, Severity
 from dpcontrol.runtime.config import DaemonConfig
-from dpcontrol.runtime.estimators import make_estimator
+from dpcontrol.runtime.estimators import WAVE_FILTER_KINDS, MassAdaptiveEstimator, make_estimator
 from dpcontrol.runtime.hub import HubOutput, SensorHub
 from dpcontrol.runtime.thrusters import ThrusterFeedback, ThrusterMonitor
 from interfaces.geodesy import LocalFrame
@@ -131,6 +131,13 @@ class DpController:
             self.controller = None
         else:
             self.controller = make_controller(config.control.config)
+        # An adapting MRAC with a DP wave filter: the filter's model inertia follows the MRAC's mass estimate
+        # between set-point moves (see MassAdaptiveEstimator: on M₀ alone the filter misleads the MRAC).
+        self._mass_adaptive: MassAdaptiveEstimator | None = None
+        if isinstance(self.controller, MracController) and self.controller.adapting \
+                and config.estimator.kind in WAVE_FILTER_KINDS:
+            self._mass_adaptive = MassAdaptiveEstimator(self.estimator, np.diag(vessel.mass_matrix))
+            self.estimator = self._mass_adaptive
         self.thrusters = vessel.thrusters
         self.allocator = ThrustAllocator(vessel.thrusters, self.dt_s, **dict(config.allocation))
         self.monitor = ThrusterMonitor(vessel.thrusters, config.thruster_monitor, self.alarms)
@@ -244,7 +251,8 @@ class DpController:
             if self.autopilot is not None:
                 pilot = self.autopilot.step(dt, float(estimate.eta_hat_n[2]), float(estimate.nu_hat_b[2]),
                                             float(reference.eta_d_n[2]), r_d_radps=float(reference.eta_dot_d_n[2]),
-                                            r_dot_d_radps2=float(reference.eta_ddot_d_n[2]))
+                                            r_dot_d_radps2=float(reference.eta_ddot_d_n[2]),
+                                            tau_bias_n_nm=float(estimate.bias_hat_b[2]))
                 rudder_command = pilot.rudder_rad
                 tau[2] = pilot.tau_n_nm
             elif self.controller is not None:
@@ -254,6 +262,8 @@ class DpController:
                 tau[:] = control.tau_b
                 if control.parameters is not None:
                     out.mrac = dict(control.parameters)
+                if self._mass_adaptive is not None and not any(self.controller.excited):
+                    self._mass_adaptive.set_mass_estimate(self.controller.mass_hat)
         t3 = clock() if clock else 0.0
 
         # --- thruster health and allocation

@@ -208,8 +208,11 @@ ESTIMATE_COLUMNS = ["est_north_m", "est_east_m", "est_heading_rad", "est_surge_m
 REFERENCE_COLUMNS = ["ref_north_m", "ref_east_m", "ref_heading_rad"]
 FORCE_COLUMNS = ["tau_x_n", "tau_y_n", "tau_n_nm", "tau_act_x_n", "tau_act_y_n", "tau_act_n_nm"]
 TAIL_COLUMNS = ["omega_hat_rad_s", "omega_peak_rad_s", "motion_peak_rad_s", "mass_factor"]
+# MRAC parameter estimates, then its reference-model pose y_M (seed 003 eq. (15)) at the step's time, so the
+# report can measure the tracking error |y − y_M| of the true LF pose (ControlOutput.parameters keys after "mrac_")
 MRAC_COLUMNS = ["mrac_mass_surge_kg", "mrac_mass_sway_kg", "mrac_inertia_yaw_kgm2", "mrac_damping_surge_nspm",
-                "mrac_damping_sway_nspm", "mrac_damping_yaw_nmsprad"]
+                "mrac_damping_sway_nspm", "mrac_damping_yaw_nmsprad", "mrac_ref_model_north_m", "mrac_ref_model_east_m",
+                "mrac_ref_model_heading_rad"]
 EXTRA_COLUMNS = ["mode", "true_surge_mass_kg", "est_bias_x_n", "est_bias_y_n", "est_bias_n_nm"]
 
 

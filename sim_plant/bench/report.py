@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.signal import welch
 
 from dpcontrol.models.frames import ssa_array
 from sim_plant.bench.lockstep import Columns, RunResult
@@ -60,18 +61,27 @@ def _round(value: float | None, digits: int = 6) -> float | None:
 
 
 def wave_frequency_std(signal: np.ndarray, dt_s: float, low_rad_s: float) -> float | None:
-    """Standard deviation of the part of ``signal`` above ``low_rad_s`` (FFT high-pass).
+    """Standard deviation of the part of ``signal`` above ``low_rad_s``: √(∫_{ω ≥ low} PSD dω).
 
-    The wave-frequency content of a commanded force: a wave filter should keep it small.
+    The wave-frequency content of a commanded force: a wave filter should keep it small. The PSD is
+    Welch's estimate (``scipy.signal.welch``: Hann-windowed segments of about 60 s, or the whole record
+    if shorter, each linearly detrended), because a plain FFT of the record treats it as periodic: the
+    jump between a force that ends at its holding value and one that started near zero, and any drift,
+    spread over all frequencies and swamp the wave-frequency part (that was the old estimate's floor).
     """
     x = signal[np.isfinite(signal)]
     if x.size < 64:
         return None
-    x = x - x.mean()
-    spectrum = np.fft.rfft(x)
-    omega = 2.0 * math.pi * np.fft.rfftfreq(x.size, dt_s)
-    spectrum[omega < low_rad_s] = 0.0
-    return float(np.std(np.fft.irfft(spectrum, x.size)))
+    segment = int(min(x.size, 2 ** round(math.log2(max(64.0, 60.0 / dt_s)))))
+    freq_hz, psd = welch(x, fs=1.0 / dt_s, nperseg=segment, detrend="linear")
+    band = 2.0 * math.pi * freq_hz >= low_rad_s
+    return float(math.sqrt(float(np.sum(psd[band])) * float(freq_hz[1] - freq_hz[0])))
+
+
+def settle_time_s(low_rad_s: float) -> float:
+    """Time skipped after DP engages before the wave-frequency metrics: three periods of the cutoff
+    (the engagement transient's content at frequency ω has decayed within a few of its periods)."""
+    return 3.0 * 2.0 * math.pi / low_rad_s
 
 
 def summarise(result: RunResult) -> dict[str, Any]:
@@ -95,6 +105,7 @@ def summarise(result: RunResult) -> dict[str, Any]:
         "steps": result.steps,
         "estimator": result.config.estimator.kind,
         "control": result.config.control.kind,
+        "control_adapt": getattr(result.config.control.config, "adapt", None),
         "model_frequencies_rad_s": list(result.omegas_rad_s),
         "wall_time_s": _round(result.wall_s, 3),
         "speed_x_realtime": _round(float(t[-1]) / result.wall_s if result.wall_s > 0 else None, 1),
@@ -154,9 +165,12 @@ def summarise(result: RunResult) -> dict[str, Any]:
     if motion_values.size:
         low = 0.5 * float(np.min(motion_values))
     if low is not None and engaged.size:
-        sl = slice(int(engaged[0]), None)
+        # from engagement + the settling time (the engagement transient is no wave-frequency content)
+        start = int(engaged[0]) + round(settle_time_s(low) / dt)
+        sl = slice(start, None)
         metrics["tau_wave_frequency_std"] = [_round(wave_frequency_std(col(n)[sl], dt, low))
                                              for n in ("tau_x_n", "tau_y_n", "tau_n_nm")]
+        metrics["tau_wave_frequency_from_s"] = _round(float(t[min(start, t.size - 1)]), 3)
         metrics["tau_std"] = [_round(float(np.nanstd(col(n)[sl]))) for n in ("tau_x_n", "tau_y_n", "tau_n_nm")]
     mass = col("mrac_mass_surge_kg")
     if np.any(np.isfinite(mass)):
@@ -165,8 +179,52 @@ def summarise(result: RunResult) -> dict[str, Any]:
         metrics["mrac_mass_surge_final_kg"] = _round(float(mass[last]), 1)
         metrics["true_surge_mass_final_kg"] = _round(float(true_mass[last]), 1)
         metrics["mrac_mass_surge_error_pct"] = _round(100.0 * (mass[last] - true_mass[last]) / true_mass[last], 3)
+    if engaged.size:
+        metrics.update(_setpoint_metrics(result, d, c.index, int(engaged[0])))
     summary["metrics"] = metrics
     return summary
+
+
+def _setpoint_metrics(result: RunResult, d: np.ndarray, index: Any, k0: int) -> dict[str, Any]:
+    """Per set-point segment (from each set-point time to the next, while engaged): the overshoot of
+    the true LF position beyond a new position set-point along the direction of the move [m], and for
+    the MRAC the tracking error ``|y − y_M|`` of the true LF position against its reference model
+    (seed 003 Figs. 9, 13), horizontal [m]. Segments before engagement are left out."""
+    t = d[:, index("t_s")]
+    north = d[:, index("north_m")]
+    east = d[:, index("east_m")]
+    out: dict[str, Any] = {}
+    points = result.scenario.setpoints
+    bounds = [(float(sp.t_s), float(points[i + 1].t_s) if i + 1 < len(points) else math.inf)
+              for i, sp in enumerate(points)]
+    overshoots: list[float | None] = []
+    for i in range(1, len(points)):
+        start, end = bounds[i]
+        sel = (t >= max(start, float(t[k0]))) & (t < end)
+        old, new = points[i - 1], points[i]
+        step = (new.north_m - old.north_m, new.east_m - old.east_m) \
+            if None not in (new.north_m, old.north_m, new.east_m, old.east_m) else (0.0, 0.0)
+        length = math.hypot(*step)
+        if not np.any(sel) or length == 0.0:
+            continue
+        along = (step[0] * (north[sel] - new.north_m) + step[1] * (east[sel] - new.east_m)) / length
+        overshoots.append(_round(max(0.0, float(np.max(along)))))
+    if overshoots:
+        out["overshoot_by_setpoint_m"] = overshoots
+    ym = d[:, index("mrac_ref_model_north_m")]
+    if np.any(np.isfinite(ym)):
+        error = np.hypot(north - ym, east - d[:, index("mrac_ref_model_east_m")])
+        valid = np.isfinite(error)
+        valid[:k0] = False
+        out["mrac_tracking_error_rms_m"] = _round(_rms(error[valid]))
+        out["mrac_tracking_error_max_m"] = _round(_max_abs(error[valid]))
+        by_segment = []
+        for start, end in bounds:
+            sel = valid & (t >= start) & (t < end)
+            if np.any(sel):
+                by_segment.append(_round(float(np.max(error[sel]))))
+        out["mrac_tracking_error_max_by_setpoint_m"] = by_segment
+    return out
 
 
 def _dominant_by_sea_state(result: RunResult, weights: np.ndarray, t: np.ndarray) -> list[dict[str, Any]]:

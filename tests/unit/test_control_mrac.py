@@ -6,16 +6,17 @@ import dataclasses
 import functools
 import json
 import math
+from typing import Any
 
 import numpy as np
 import pytest
 from scipy.linalg import solve_continuous_lyapunov
 
 from dpcontrol.control import MracConfig, MracController, default_mrac_config
-from dpcontrol.control.factory import control_config_from_mapping
-from dpcontrol.control.mrac import PARAMETER_NAMES
+from dpcontrol.control.factory import control_config_from_mapping, make_controller
+from dpcontrol.control.mrac import PARAMETER_NAMES, REFERENCE_MODEL_NAMES, reference_excitation
 from dpcontrol.control.offloading_case import OffloadingCase, default_offloading_mrac_config, simulate_offloading
-from dpcontrol.guidance import Reference
+from dpcontrol.guidance import Reference, ReferenceModel, default_reference_config
 from dpcontrol.models.schema import ConfigError
 from dpcontrol.models.vessels import SHUTTLE_TANKER, SHUTTLE_TANKER_FULL, SUPPLY
 
@@ -62,10 +63,13 @@ def test_no_parameter_drift_while_station_keeping_in_waves() -> None:
     robust = simulate_offloading(case, True)
     assert np.max(np.abs(robust.mass_hat_kg / robust.mass_true_kg - 1.0)) < 0.02
     # the pure law (21) without gating or dead zone drifts (parameter drift) — what the safeguards prevent
-    config = dataclasses.replace(default_offloading_mrac_config(), dead_zone=(0.0, 0.0, 0.0),
-                                 accel_threshold=(0.0, 0.0, 0.0), velocity_threshold=(0.0, 0.0, 0.0))
-    pure = simulate_offloading(case, True, config)
+    bare = dataclasses.replace(default_offloading_mrac_config(), dead_zone=(0.0, 0.0, 0.0),
+                               accel_threshold=(0.0, 0.0, 0.0), velocity_threshold=(0.0, 0.0, 0.0))
+    pure = simulate_offloading(case, True, dataclasses.replace(bare, regressor="plant"))
     assert pure.mass_hat_kg[-1] / pure.mass_true_kg[-1] > 1.2
+    # the reference-model regressor has nothing to correlate with the noise: no drift even without them
+    reference = simulate_offloading(case, True, bare)
+    assert np.max(np.abs(reference.mass_hat_kg / reference.mass_true_kg - 1.0)) < 0.02
 
 
 def test_lyapunov_matrix_and_pd_equivalence_of_eq_25() -> None:
@@ -95,27 +99,53 @@ def test_lyapunov_matrix_and_pd_equivalence_of_eq_25() -> None:
     np.testing.assert_allclose(d, m * beta1)
 
 
-def test_adaptation_converges_to_the_true_mass_in_ideal_conditions() -> None:
-    """Noise-free surge plant of twice the nominal mass, repeated 20 m steps: â₂ → m."""
-    config = default_mrac_config(SHUTTLE_TANKER)
+def _ideal_surge_adaptation(config: MracConfig, guidance: ReferenceModel | None, hours: float = 4.0
+                            ) -> tuple[MracController, float, Any]:
+    """Noise-free surge plant of twice the nominal mass, 20 m corrections every 30 min; the MRAC is driven
+    by the raw set-point (seed 003) or by the guidance's reference (the runtime)."""
     controller = MracController(config)
     m_true = 2.0 * config.mass_nominal[0]
     c_true = config.damping_nominal[0]
     y = yd = 0.0
     dt = 1.0
-    for k in range(4 * 3600):
-        target = 20.0 * ((k // 1800) % 2)
-        out = controller.step(dt, np.array([y, 0.0, 0.0]), np.array([yd, 0.0, 0.0]), None,
-                              Reference.hold(np.array([target, 0.0, 0.0])), dof_enabled=SURGE)
+    out = None
+    for k in range(round(hours * 3600)):
+        target = np.array([20.0 * ((k // 1800) % 2), 0.0, 0.0])
+        reference = Reference.hold(target) if guidance is None else guidance.step(dt, target)
+        out = controller.step(dt, np.array([y, 0.0, 0.0]), np.array([yd, 0.0, 0.0]), None, reference,
+                              dof_enabled=SURGE)
         u = out.tau_b[0]
         decay = math.exp(-c_true / m_true * dt)
         v_inf = u / c_true
         y += v_inf * dt + (yd - v_inf) * m_true / c_true * (1.0 - decay)
         yd = v_inf + (yd - v_inf) * decay
+    return controller, m_true, out
+
+
+def test_adaptation_converges_to_the_true_mass_in_ideal_conditions() -> None:
+    """Reference model driven by the set-point steps (seed 003): â₂ → m."""
+    config = default_mrac_config(SHUTTLE_TANKER, step_driven=True)
+    controller, m_true, out = _ideal_surge_adaptation(config, None)
     assert controller.mass_hat[0] == pytest.approx(m_true, rel=0.03)
     assert controller.mass_hat[1] == config.mass_nominal[1]  # disabled DOFs do not adapt
-    assert out.parameters is not None and set(out.parameters) == set(PARAMETER_NAMES)
+    assert out.parameters is not None and set(out.parameters) == set(PARAMETER_NAMES) | set(REFERENCE_MODEL_NAMES)
     assert out.parameters["mass_surge_kg"] == controller.mass_hat[0]
+
+
+def test_default_gains_adapt_through_the_guidance_as_fast_as_through_steps() -> None:
+    """In the runtime the guidance drives the reference model: far smoother than a step (ÿ_M ≈ 10× smaller
+    for the tanker), so gains designed for steps would learn ≈ 100× slower. The default tuning scales Γ and
+    the gating by the excitation of a move through the vessel's guidance: after two corrections (1.5 h) the
+    estimate has converged as in the step-driven case; with the step-driven gains it has not."""
+    guidance_config = default_reference_config(SHUTTLE_TANKER)
+    moves = reference_excitation(guidance_config, (200.0,) * 3, (1.0,) * 3, (20.8, 20.8, math.radians(10.0)))
+    assert moves.peak_accel[0] < 0.2 * (2.0 * math.pi / 200.0) ** 2 * 20.8  # much smoother than a step
+    tuned, m_true, _ = _ideal_surge_adaptation(default_mrac_config(SHUTTLE_TANKER),
+                                               ReferenceModel(guidance_config), hours=1.5)
+    step_gains, _, _ = _ideal_surge_adaptation(default_mrac_config(SHUTTLE_TANKER, step_driven=True),
+                                               ReferenceModel(guidance_config), hours=1.5)
+    assert tuned.mass_hat[0] == pytest.approx(m_true, rel=0.05)
+    assert abs(step_gains.mass_hat[0] - m_true) > 0.2 * m_true
 
 
 def test_saturation_freezes_adaptation_and_projection_bounds_the_estimates() -> None:
@@ -199,3 +229,25 @@ def test_config_validation() -> None:
     with pytest.raises(ValueError):
         MracConfig(mass_nominal=(1.0, -1.0, 1.0), damping_nominal=(0, 0, 0), adaptation_gain_mass=(1, 1, 1),
                    adaptation_gain_damping=(1, 1, 1))
+
+
+def test_adapt_and_regressor_keys_select_the_fixed_pd_and_the_law() -> None:
+    fixed = control_config_from_mapping({"kind": "mrac", "adapt": False}, SHUTTLE_TANKER)
+    assert isinstance(fixed, MracConfig) and fixed.adapt is False and fixed.regressor == "reference"
+    controller = make_controller(fixed)
+    assert isinstance(controller, MracController) and not controller.adapting
+    plant = control_config_from_mapping({"kind": "mrac", "regressor": "plant"}, SHUTTLE_TANKER)
+    assert plant.adapt is True and plant.regressor == "plant"
+    assert MracController(plant, adapt=False).adapting is False  # the constructor argument still wins
+    with pytest.raises(ConfigError, match=r"control\.adapt"):
+        control_config_from_mapping({"kind": "mrac", "adapt": "sometimes"}, SHUTTLE_TANKER)
+    with pytest.raises(ConfigError, match=r"control\.regressor"):
+        control_config_from_mapping({"kind": "mrac", "regressor": "z"}, SHUTTLE_TANKER)
+    # the frozen controller really is eq. (25): a step response leaves the parameters untouched and the
+    # output carries the reference-model pose for the tracking error e = y − y_M
+    out = controller.step(1.0, np.zeros(3), np.zeros(3), None, Reference.hold(np.array([20.0, 0.0, 0.0])))
+    for _ in range(300):
+        out = controller.step(1.0, np.zeros(3), np.zeros(3), None, Reference.hold(np.array([20.0, 0.0, 0.0])))
+    assert controller.mass_hat.tolist() == list(fixed.mass_nominal)
+    assert out.parameters is not None and 0.0 < out.parameters["ref_model_north_m"] < 20.0
+    assert not any(controller.excited)
