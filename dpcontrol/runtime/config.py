@@ -236,22 +236,27 @@ def _parse_hub(section: Section) -> HubConfig:
     return HubConfig(**values)
 
 
-def _parse_estimator(section: Section, vessel: VesselData, rate_hz: float) -> EstimatorSettings:
+def _parse_estimator(section: Section, vessel: VesselData, rate_hz: float,
+                     routes: tuple[SensorRoute, ...] = ()) -> EstimatorSettings:
     kind = section.string("kind", "mmae", choices=ESTIMATOR_KINDS)
     options = {k: v for k, v in section.data.items() if k != "kind"}
     section._read.update(options)
     section.finish()
     if kind in ("kalman_bucy", "heading_kf"):
-        allowed = {"kalman_bucy": (), "heading_kf": ("omega0_rad_s", "zeta", "compass_std_deg")}[kind]
-        for key in options:
-            if key not in allowed:
-                valid = ", ".join(allowed) or "none"
-                raise ConfigError(f"{section.path}.{key}", f"a key of estimator {kind} ({valid})", show_got=False)
-        if kind == "heading_kf" and (vessel.nomoto_gain_per_s is None or vessel.nomoto_time_constant_s is None):
-            raise ConfigError(f"{section.path}.kind", "a vessel with a Nomoto model for heading_kf", vessel.name)
-        clean = dict(options)
-        if "compass_std_deg" in clean:
-            clean["compass_std_rad"] = math.radians(float(clean.pop("compass_std_deg")))
+        sub = Section.of(options, section.path)
+        clean: dict[str, float] = {}
+        if kind == "kalman_bucy":
+            clean["process_noise_scale"] = sub.number("process_noise_scale", 0.02, minimum=0.0, exclusive_minimum=True)
+        else:
+            if vessel.nomoto_gain_per_s is None or vessel.nomoto_time_constant_s is None:
+                raise ConfigError(f"{section.path}.kind", "a vessel with a Nomoto model for heading_kf", vessel.name)
+            clean["omega0_rad_s"] = sub.number("omega0_rad_s", 1.2, minimum=0.05, maximum=5.0)
+            clean["zeta"] = sub.number("zeta", 0.1, minimum=0.0, exclusive_minimum=True, maximum=1.0)
+            for key, default in (("compass_std_deg", 0.5), ("wave_yaw_std_deg", 3.0), ("bias_rudder_deg", 5.0)):
+                value = sub.number(key, default, minimum=0.0, exclusive_minimum=key != "wave_yaw_std_deg")
+                clean[key.replace("_deg", "_rad")] = math.radians(value)
+            clean["bias_time_s"] = sub.number("bias_time_s", 100.0, minimum=0.0, exclusive_minimum=True)
+        sub.finish()
         return EstimatorSettings(kind, None, clean)
     omegas: tuple[float, ...]
     if kind == "mmae":
@@ -269,6 +274,14 @@ def _parse_estimator(section: Section, vessel: VesselData, rate_hz: float) -> Es
             raise ConfigError(where, "a wave peak frequency in [0.05, 5] rad/s", omega)
     zeta = options.get("zeta", 0.1)
     extra = {k: v for k, v in options.items() if k not in ("omegas_rad_s", "omega_rad_s", "omega0_rad_s", "zeta")}
+    # The filter's measurement noise defaults to what the configured sensors claim (the quietest of
+    # each kind, since the hub fuses them), instead of the length-based rule.
+    position = [r.sensor.sigma for r in routes if r.sensor.kind is SensorKind.POSITION]
+    heading = [r.sensor.sigma for r in routes if r.sensor.kind is SensorKind.HEADING]
+    if position and "position_noise_std_m" not in extra:
+        extra["position_noise_std_m"] = min(position)
+    if heading and "heading_noise_std_rad" not in extra:
+        extra["heading_noise_std_rad"] = min(heading)
     wave_filter = WaveFilterConfig.from_options(
         vessel.mass_matrix, vessel.damping_matrix, 1.0 / rate_hz, kind=kind, omegas_rad_s=omegas or (0.8,),
         zeta=zeta, options=extra, length_m=vessel.length_m, path=section.path)
@@ -280,9 +293,10 @@ def _parse_control(section: Section, vessel: VesselData) -> ControlSettings:
     if kind == "autopilot":
         natural = section.number("natural_frequency_radps", 0.05, minimum=0.0, exclusive_minimum=True)
         zeta = section.number("relative_damping", 0.8, minimum=0.0, exclusive_minimum=True)
+        bias = section.boolean("bias_feedforward", True)
         section.finish()
         try:
-            config = AutopilotConfig.for_vessel(vessel, natural, zeta)
+            config = AutopilotConfig.for_vessel(vessel, natural, zeta, bias)
         except ValueError as error:
             raise ConfigError(f"{section.path}.kind", "a vessel with a Nomoto model and a rudder", str(error)) from None
         return ControlSettings(kind, config)
@@ -339,7 +353,7 @@ def _parse(mapping: object, text: str, file: str | None) -> DaemonConfig:
     if not any(r.sensor.kind is SensorKind.HEADING for r in routes):
         raise ConfigError("sensors", "at least one sensor of kind heading", names)
 
-    estimator = _parse_estimator(root.section("estimator"), vessel, rate)
+    estimator = _parse_estimator(root.section("estimator"), vessel, rate, routes)
     guidance = reference_config_from_mapping(root.raw("guidance", None), vessel, "guidance")
     control = _parse_control(root.section("control"), vessel)
     if (control.kind == "autopilot") != (estimator.kind == "heading_kf"):

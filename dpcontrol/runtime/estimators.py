@@ -381,7 +381,7 @@ def make_estimator(kind: str, wave_filter: WaveFilterConfig | None, vessel: Vess
             raise ValueError(f"estimator {kind} needs a WaveFilterConfig")
         return make_wave_filter(wave_filter)
     if kind == "kalman_bucy":
-        return KalmanBucyEstimator(sample_time_s)  # type: ignore[return-value]
+        return KalmanBucyEstimator(sample_time_s, **dict(options or {}))  # type: ignore[return-value]
     if kind == "heading_kf":
         opts = dict(options or {})
         return CourseKeepingEstimator(vessel, sample_time_s, **opts)  # type: ignore[return-value]

@@ -225,6 +225,7 @@ class DpController:
             if self.mode is not Mode.STANDBY:
                 self.reference_model.reset(y)
         if self._estimator_ready:
+            self._update_force_input()
             estimate = self.estimator.step(y, self._tau_input_b, hub.measured)
             out.estimate = estimate
         t2 = clock() if clock else 0.0
@@ -271,15 +272,6 @@ class DpController:
         self._allocate(dt, available, rudder_command)
         t4 = clock() if clock else 0.0
 
-        # --- what the estimator sees as the input of the next period: the delivered force
-        delivered = self.monitor.delivered()
-        if self.autopilot is not None:
-            rudder = 0.0 if self._rudder_index is None else float(out.azimuth_rad[self._rudder_index])
-            self._tau_input_b[:] = (0.0, 0.0, self._rudder_sign * rudder)
-        elif delivered is not None:
-            self._tau_input_b[:] = self.allocator.geometry.force_b(delivered[0], delivered[1])
-        else:
-            self._tau_input_b[:] = out.tau_achieved_b
         if self.controller is not None and self.mode is not Mode.STANDBY:
             self.controller.notify_achieved(out.tau_achieved_b)
         self._capability_alarm(t_s)
@@ -290,6 +282,20 @@ class DpController:
         out.mode = self.mode
         out.setpoint_n[:] = self.setpoint_n
         return out
+
+    def _update_force_input(self) -> None:
+        """The force the estimator predicts the next period with: what the drives deliver *now* (this
+        cycle's feedback), else the force allocated last cycle; the rudder angle for an autopilot."""
+        out = self.out
+        if self.autopilot is not None:
+            rudder = 0.0 if self._rudder_index is None else float(out.azimuth_rad[self._rudder_index])
+            self._tau_input_b[:] = (0.0, 0.0, self._rudder_sign * rudder)
+            return
+        delivered = self.monitor.delivered()
+        if delivered is not None:
+            self._tau_input_b[:] = self.allocator.geometry.force_b(delivered[0], delivered[1])
+        else:
+            self._tau_input_b[:] = out.tau_achieved_b
 
     def _allocate(self, dt: float, available: np.ndarray, rudder_command: float | None) -> None:
         out = self.out

@@ -32,9 +32,8 @@ def _run(wave_filter: bool, *, calm: bool = False, duration_s: float | None = No
     simulation: LockstepSimulation = build_simulation(scenario)
     if not wave_filter:
         controller = simulation.controller
-        options = dict(simulation.config.estimator.options)
-        controller.estimator = CourseKeepingEstimator(simulation.config.vessel, controller.dt_s, **options,
-                                                      wave_yaw_std_rad=0.0)
+        options = {**simulation.config.estimator.options, "wave_yaw_std_rad": 0.0}
+        controller.estimator = CourseKeepingEstimator(simulation.config.vessel, controller.dt_s, **options)
     result = simulation.run(duration_s=duration_s)
     wrap_headings(result.columns)
     return result

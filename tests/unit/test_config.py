@@ -74,6 +74,10 @@ def test_every_shipped_example_validates(capsys: pytest.CaptureFixture[str]) -> 
     (lambda c: c.update(estimator={"kind": "mmae", "omegas_rad_s": [0.3, 9.0]}), "estimator.omegas_rad_s[1]"),
     (lambda c: c.update(estimator={"kind": "kf", "omega_rad_s": "x"}), "estimator.omega_rad_s"),
     (lambda c: c.update(estimator={"kind": "ekf"}), "estimator.kind"),
+    (lambda c: c.update(estimator={"kind": "kalman_bucy", "process_noise_scale": 0}),
+     "estimator.process_noise_scale"),
+    (lambda c: c.update(estimator={"kind": "kalman_bucy", "omega0_rad_s": 1.0}), "estimator.omega0_rad_s"),
+    (lambda c: c.update(estimator={"kind": "heading_kf"}), "estimator.kind"),  # CyberShip II has no Nomoto model
     (lambda c: c.update(control={"kind": "pid", "kp": [[1, 0, 0]]}), "control.kp"),
     (lambda c: c.update(guidance={"max_speed_mps": 0}), "guidance.max_speed_mps"),
     (lambda c: c.update(hub={"jump_min_m": -4}), "hub.jump_min_m"),
@@ -96,6 +100,9 @@ def test_bad_field_is_refused_with_its_key_path(edit, path_expected: str) -> Non
 def test_base_config_is_valid() -> None:
     config = parse_config(copy.deepcopy(BASE))
     assert [s.name for s in config.sensors] == ["gnss1", "gyro1"]
+    # the wave filter's measurement noise defaults to what the sensors claim
+    assert config.estimator.wave_filter.position_noise_std_m == pytest.approx(0.5)
+    assert config.estimator.wave_filter.heading_noise_std_rad == pytest.approx(0.1 * 3.141592653589793 / 180)
 
 
 def test_check_config_cli_refuses_a_broken_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
