@@ -31,7 +31,7 @@ import pytest
 from interfaces.geodesy import geodetic_to_ecef
 from interfaces.nmea2000.logs import decode_candump_log
 
-CORPUS = Path(__file__).parents[2] / ".." / "shared" / "corpora" / "canboat-n2k"
+CORPUS = Path(__file__).parents[2] / "tests" / "corpora" / "data" / "canboat-n2k"
 SAMPLES = ["candumpSample1.txt", "candumpSample2.txt", "candumpSample3.txt"]
 MAX_RATE_RADPS = math.radians(30.0)
 NOMINAL_INTERVAL_S = 0.1

@@ -45,7 +45,7 @@ import pytest
 from interfaces.messages import PositionFix
 from interfaces.nmea0183 import REJECT_REASONS, Frame, Nmea0183Decoder, PtyPair, ReceivedLine, SerialReader
 
-CORPORA = Path(__file__).parents[2] / ".." / "shared" / "corpora"
+CORPORA = Path(__file__).parents[2] / "tests" / "corpora" / "data"
 NMEA_DIR = CORPORA / "gpsd-nmea"
 BINARY_DIR = CORPORA / "gpsd-binary"
 pytestmark = pytest.mark.skipif(

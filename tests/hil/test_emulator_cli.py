@@ -35,11 +35,14 @@ def _files(tmp_path: Path, rig: Any) -> tuple[Path, Path, Path]:
     return scenario, controller, port
 
 
-@pytest.mark.parametrize("command", ["run", "demo", "bench"])
-def test_placeholder_commands_say_not_yet(command: str, capsys: pytest.CaptureFixture[str]) -> None:
-    argv = [command] if command != "run" else [command, "scenario.yaml"]
-    assert main(argv) == 2
-    assert "not yet" in capsys.readouterr().err
+def test_run_refuses_a_missing_scenario_and_a_bad_override(tmp_path: Path,
+                                                            capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["run", str(tmp_path / "missing.yaml"), "--out", str(tmp_path / "out")]) == 2
+    assert "missing.yaml" in capsys.readouterr().err
+    assert main(["run", "cs2-seed000", "--out", str(tmp_path / "out"), "--override", "[1, 2]"]) == 2
+    assert "expected a mapping" in capsys.readouterr().err
+    assert main(["run", "cs2-seed000", "--out", str(tmp_path / "out"), "--override", "{estimator: {kind: ekf}}"]) == 2
+    assert "estimator.kind" in capsys.readouterr().err
 
 
 def test_no_command_prints_help(capsys: pytest.CaptureFixture[str]) -> None:

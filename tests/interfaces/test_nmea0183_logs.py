@@ -78,7 +78,7 @@ def test_high_precision_logs_need_a_longer_limit() -> None:
     assert record["lat_deg"] == pytest.approx(41 + 34.49795459 / 60, abs=1e-12)
 
 
-CORPUS_LOG = Path(__file__).parents[2] / ".." / "shared" / "corpora" / "gpsd-nmea" / "ublox-zed-f9r.log"
+CORPUS_LOG = Path(__file__).parents[2] / "tests" / "corpora" / "data" / "gpsd-nmea" / "ublox-zed-f9r.log"
 
 
 @pytest.mark.skipif(not CORPUS_LOG.is_file(), reason=f"gpsd corpus log not found at {CORPUS_LOG.resolve()}")

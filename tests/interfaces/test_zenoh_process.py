@@ -26,6 +26,7 @@ MESSAGES = 20
 
 CHILD = textwrap.dedent("""
     import sys
+    import time
     from interfaces.zenoh import ZenohConfig, ZenohNode
     from interfaces.zenoh.schemas import feedback_payload
 
@@ -39,6 +40,7 @@ CHILD = textwrap.dedent("""
         seq = feedback.next_seq()
         feedback.put(feedback_payload(t_s=float(seq), seq=seq, names=["bow", "stern"], thrust_n=[seq, -seq],
                                       azimuth_rad=[1.5, 0.0], ready=[True, True]))
+        time.sleep(0.02)  # a drive publishes periodically; feedback is drop-on-congestion, not a burst topic
     print("sent", flush=True)
     sys.stdin.read()  # until the parent closes our stdin
     node.close()
