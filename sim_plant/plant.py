@@ -165,6 +165,7 @@ class Plant:
         self._mass_varies = len({p.factor for p in scenario.mass_schedule}) > 1
         self._final_mass = scenario.mass_schedule[-1].factor if scenario.mass_schedule else 1.0
         self.model.set_mass_factor(scenario.mass_factor_at(0.0))
+        self._mass_t = math.nan
         self._hull_draft = self.model.hull.draft_m
         self.waves = WaveEnvironment(scenario.sea_states, self.model.hull, lambda i: rng(_STREAM_WAVES, i),
                                      water_density_kgpm3=vessel.water_density_kgpm3,
@@ -205,6 +206,7 @@ class Plant:
         self._env_period = max(self._h, ENV_PERIOD_S)
         self._env_next = 0.0
         self._truth_cache: PlantTruth | None = None
+        self._next_event = math.inf
         self._process_events(0.0)
 
     # -- inputs ----------------------------------------------------------------------------------
@@ -280,6 +282,9 @@ class Plant:
         self._wave_cache_t = math.nan
 
     def _update_mass(self, t: float) -> None:
+        if t == self._mass_t:
+            return  # the end of one advance() and the start of the next substep ask for the same time
+        self._mass_t = t
         model = self.model
         factor = self.scenario.mass_factor_at(t)
         # rebuilding the matrices costs ~50 µs: follow the schedule in steps of 1e-4 (relative)
@@ -300,8 +305,9 @@ class Plant:
             self._wave_cache_t = t
         return self._wave_cache
 
-    @property
-    def _next_event(self) -> float:
+    def _find_next_event(self) -> float:
+        """The next sensor sample time or thruster-fault boundary (they change only in _process_events,
+        which caches this as ``_next_event``)."""
         nxt = self._fault_times[0] if self._fault_times else math.inf
         for sensor in self.sensors:
             nxt = min(nxt, sensor.next_time_s)
@@ -319,6 +325,7 @@ class Plant:
                 self.drives.set_failure(name, failure)
         due = [s for s in self.sensors if s.next_time_s <= t + _TOL_S]
         if not due:
+            self._next_event = self._find_next_event()
             return
         x = self._x
         wave = self._waves_at(t)
@@ -335,6 +342,7 @@ class Plant:
                     self._samples.extend(sensor.sample(t, north_total, east_total, heading_total))
                 else:
                     self._samples.extend(sensor.sample(t, heading_total, rate_total))
+        self._next_event = self._find_next_event()
 
     # -- outputs -----------------------------------------------------------------------------------
     @property

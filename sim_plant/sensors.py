@@ -192,14 +192,15 @@ class _Sensor:
         self._period = 1.0 / spec.rate_hz
         self.next_time_s = spec.offset_s
         self._gm_time_s: float | None = None
-        self._block = np.empty(0)
+        self._block: list[float] = []
         self._used = 0
 
-    def _normals(self, k: int) -> np.ndarray:
+    def _normals(self, k: int) -> list[float]:
         """The next ``k`` standard normal draws of this sensor's stream (drawn in blocks: one numpy
-        call per 1024 samples instead of one per sample)."""
-        if self._used + k > self._block.size:
-            self._block = self._rng.standard_normal(2048)
+        call per 1024 samples instead of one per sample; kept as Python floats, which is what every
+        use of them needs)."""
+        if self._used + k > len(self._block):
+            self._block = self._rng.standard_normal(2048).tolist()
             self._used = 0
         out = self._block[self._used:self._used + k]
         self._used += k
@@ -217,16 +218,17 @@ class _Sensor:
     def _utc(self, t_s: float) -> float:
         return math.fmod(self._utc_start_s + t_s, SECONDS_PER_DAY)
 
-    def _gm_step(self, state: np.ndarray, sigma: float, tau: float, t_s: float) -> None:
-        """Exact discrete Gauss–Markov update of ``state`` to time ``t_s`` (stationary start)."""
+    def _gm_step(self, state: list[float], sigma: float, tau: float, t_s: float) -> None:
+        """Exact discrete Gauss–Markov update of ``state`` to time ``t_s`` (stationary start), in place."""
         if sigma <= 0.0:
             return
+        draws = self._normals(len(state))
         if self._gm_time_s is None:
-            state[:] = sigma * self._normals(state.size)
+            state[:] = [sigma * w for w in draws]
         else:
             phi = math.exp(-(t_s - self._gm_time_s) / tau)
-            state *= phi
-            state += sigma * math.sqrt(max(0.0, 1.0 - phi * phi)) * self._normals(state.size)
+            gain = sigma * math.sqrt(max(0.0, 1.0 - phi * phi))
+            state[:] = [x * phi + gain * w for x, w in zip(state, draws, strict=True)]
 
 
 class GnssSensor(_Sensor):
@@ -250,7 +252,7 @@ class GnssSensor(_Sensor):
         super().__init__(spec, rng, faults, utc_start_s)
         self.gnss = spec
         self._frame = frame
-        self._gm = np.zeros(2)
+        self._gm = [0.0, 0.0]
         self._last_latlon: tuple[float, float] | None = None
 
     def sample(self, t_s: float, north_m: float, east_m: float, heading_rad: float) -> list[SensorSample]:
@@ -286,8 +288,8 @@ class GnssSensor(_Sensor):
                 off_e += grown * math.sin(f.direction_rad)
         dn, de = lever_arm_ned(spec.lever_arm_m[0], spec.lever_arm_m[1], heading_rad)
         gm = self._gm
-        n = north_m + dn + float(gm[0]) + factor * spec.noise_m * float(white_n) + off_n
-        e = east_m + de + float(gm[1]) + factor * spec.noise_m * float(white_e) + off_e
+        n = north_m + dn + gm[0] + factor * spec.noise_m * white_n + off_n
+        e = east_m + de + gm[1] + factor * spec.noise_m * white_e + off_e
         utc = self._utc(t_s)
         if "gnss_freeze" in kinds and self._last_latlon is not None:
             lat, lon = self._last_latlon
@@ -314,7 +316,7 @@ class GyroSensor(_Sensor):
                  utc_start_s: float = 0.0) -> None:
         super().__init__(spec, rng, faults, utc_start_s)
         self.gyro = spec
-        self._gm = np.zeros(1)
+        self._gm = [0.0]
         self._last: tuple[float, float] | None = None
 
     def sample(self, t_s: float, heading_rad: float, yaw_rate_radps: float) -> list[SensorSample]:
@@ -336,12 +338,12 @@ class GyroSensor(_Sensor):
             elif f.kind == "gyro_drift":
                 offset += f.rate_radps * (t_s - f.t_s)
                 rate_error += f.rate_radps
-        heading = ssa(heading_rad + spec.bias_rad + float(self._gm[0]) + spec.noise_rad * float(white_h) + offset)
+        heading = ssa(heading_rad + spec.bias_rad + self._gm[0] + spec.noise_rad * white_h + offset)
         if heading < 0.0:
             heading += TWO_PI
             if heading >= TWO_PI:  # −1e-17 + 2π rounds to 2π
                 heading = 0.0
-        rate = yaw_rate_radps + spec.rot_noise_radps * float(white_r) + rate_error
+        rate = yaw_rate_radps + spec.rot_noise_radps * white_r + rate_error
         if "gyro_freeze" in kinds and self._last is not None:
             heading, rate = self._last
         utc = self._utc(t_s)

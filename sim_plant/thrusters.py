@@ -109,8 +109,6 @@ class ThrusterDrives:
         self.timeout_s = timeout_s
         n = len(self.specs)
         self._kind = [_KIND[s.kind] for s in self.specs]
-        self._x = [s.x_m for s in self.specs]
-        self._y = [s.y_m for s in self.specs]
         self._tau = [s.time_constant_s for s in self.specs]
         self._rate = [s.thrust_rate_limit_nps for s in self.specs]
         self._max = [s.max_thrust_n for s in self.specs]
@@ -119,9 +117,6 @@ class ThrusterDrives:
                          for s in self.specs]
         self._rudder_max = [math.inf if s.rudder_max_angle_rad is None else s.rudder_max_angle_rad
                             for s in self.specs]
-        self._lift = [s.rudder_lift_per_rad for s in self.specs]
-        self._fixed_cos = [math.cos(s.angle_rad) for s in self.specs]
-        self._fixed_sin = [math.sin(s.angle_rad) for s in self.specs]
         # state
         self.thrust = [0.0] * n  # drive state (what the drive produces before failures)
         self.angle = [s.angle_rad if _KIND[s.kind] in (_TUNNEL, _PROPELLER) else 0.0 for s in self.specs]
@@ -132,6 +127,10 @@ class ThrusterDrives:
         self.failure: list[str | None] = [None] * n
         self._alpha_h = -1.0
         self._alpha = [0.0] * n
+        self._any_failure = False  # no failure anywhere: delivered thrust = drive thrust (the usual case)
+        # per drive, the constants of force_b in one tuple (one unpacking instead of five list look-ups)
+        self._geometry = [(i, _KIND[s.kind], s.x_m, s.y_m, math.cos(s.angle_rad), math.sin(s.angle_rad),
+                           s.rudder_lift_per_rad) for i, s in enumerate(self.specs)]
 
     # -- inputs ----------------------------------------------------------------------------------
     def command(self, t_s: float, commands: Mapping[str, ThrusterCommand]) -> None:
@@ -192,6 +191,7 @@ class ThrusterDrives:
         if failure is not None and failure not in FAILURES:
             raise ValueError(f"unknown thruster failure {failure!r}")
         self.failure[self._index[name]] = failure
+        self._any_failure = any(f is not None for f in self.failure)
 
     # -- dynamics --------------------------------------------------------------------------------
     def update(self, t_s: float, h_s: float) -> None:
@@ -247,30 +247,36 @@ class ThrusterDrives:
         takes from its hydrodynamic derivatives).
         """
         fx_sum = fy_sum = n_sum = 0.0
-        for i in range(len(self._kind)):
+        thrusts = self.thrust
+        angles = self.angle
+        failed = self._any_failure
+        for i, kind, x, y, fixed_cos, fixed_sin, lift in self._geometry:
             if i == skip:
                 continue
-            t = self.delivered_thrust(i)
+            t = self.delivered_thrust(i) if failed else thrusts[i]
             if t == 0.0:
                 continue
-            kind = self._kind[i]
             if kind == _AZIMUTH:
-                a = self.angle[i]
+                a = angles[i]
                 fx = t * math.cos(a)
                 fy = t * math.sin(a)
             elif kind == _RUDDER:
                 fx = t
-                fy = t * self._lift[i] * self.angle[i] if t > 0.0 else 0.0
+                fy = t * lift * angles[i] if t > 0.0 else 0.0
             else:
-                fx = t * self._fixed_cos[i]
-                fy = t * self._fixed_sin[i]
+                fx = t * fixed_cos
+                fy = t * fixed_sin
             fx_sum += fx
             fy_sum += fy
-            n_sum += self._x[i] * fy - self._y[i] * fx
+            n_sum += x * fy - y * fx
         return fx_sum, fy_sum, n_sum
 
     def feedback(self) -> list[ThrusterFeedback]:
         """Per-drive feedback (delivered thrust, actual angle, ready)."""
+        if not self._any_failure:
+            angles = self.angle
+            return [ThrusterFeedback(name, thrust, ssa(angles[i]), True)
+                    for i, (name, thrust) in enumerate(zip(self.names, self.thrust, strict=True))]
         return [ThrusterFeedback(name, self.delivered_thrust(i), ssa(self.angle[i]), self.failure[i] != "not_ready")
                 for i, name in enumerate(self.names)]
 

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -74,6 +74,18 @@ class ThrusterGeometry:
     azimuth_index: np.ndarray
     rudder_index: np.ndarray
     rudder_lift_per_rad: np.ndarray
+    # (thruster, variable[, k_L]) of the rudders and fixed thrusters for extended_from_commands
+    _rudders: tuple[tuple[int, int, float], ...] = field(init=False, repr=False)
+    _fixed: tuple[tuple[int, int], ...] = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        # build() puts the azimuth pairs first, at (2q, 2q + 1)
+        if not np.array_equal(self.first_variable[self.azimuth_index], 2 * np.arange(self.azimuth_index.size)):
+            raise ValueError("ThrusterGeometry: the azimuth variables must come first (use build())")
+        first = self.first_variable.tolist()
+        object.__setattr__(self, "_rudders", tuple(
+            (i, first[i], float(k)) for i, k in zip(self.rudder_index.tolist(), self.rudder_lift_per_rad, strict=True)))
+        object.__setattr__(self, "_fixed", tuple((i, first[i]) for i in self.fixed_index.tolist()))
 
     @staticmethod
     def build(specs: Sequence[ThrusterSpec]) -> ThrusterGeometry:
@@ -138,18 +150,24 @@ class ThrusterGeometry:
         """
         thrust = np.asarray(thrust_n, dtype=float)
         angle = np.asarray(angle_rad, dtype=float)
-        f = np.empty(self.n_variables)
-        f[self.first_variable[self.fixed_index]] = thrust[self.fixed_index]
-        j = self.first_variable[self.azimuth_index]
-        t = thrust[self.azimuth_index]
-        a = angle[self.azimuth_index]
-        f[j] = t * np.cos(a)
-        f[j + 1] = t * np.sin(a)
-        j = self.first_variable[self.rudder_index]
-        t = thrust[self.rudder_index]
-        f[j] = t
-        f[j + 1] = np.where(t > 0.0, t * self.rudder_lift_per_rad * angle[self.rudder_index], 0.0)
-        return f
+        # Python floats for the handful of thrusters (a numpy call per thruster type costs more than the
+        # arithmetic); the azimuths' cos/sin stay numpy's, the same values as a vectorised evaluation
+        t = thrust.tolist()
+        f = [0.0] * self.n_variables
+        if self.azimuth_index.size:
+            a = angle[self.azimuth_index]
+            for q, (i, c, s) in enumerate(zip(self.azimuth_index.tolist(), np.cos(a).tolist(), np.sin(a).tolist(),
+                                              strict=True)):
+                f[2 * q] = t[i] * c
+                f[2 * q + 1] = t[i] * s
+        if self.rudder_index.size:
+            delta = angle.tolist()
+            for i, j, k_lift in self._rudders:
+                f[j] = t[i]
+                f[j + 1] = t[i] * k_lift * delta[i] if t[i] > 0.0 else 0.0   # lift only ahead
+        for i, j in self._fixed:
+            f[j] = t[i]
+        return np.array(f)
 
     def force_b(self, thrust_n: np.ndarray, angle_rad: np.ndarray) -> np.ndarray:
         """Generalized force ``B f`` ``[N, N, N·m]`` of thrust/angle commands."""

@@ -628,18 +628,23 @@ class MracController:
                 v2, v1 = ydd_m_b[i], yd_m_b[i]
             else:
                 v2, v1 = z[i], nu[i]
-            self._excited[i] = abs(ydd_m_b[i]) > self._accel_threshold[i]
-            rate2 = -self._gamma_m[i] * v2 * s if abs(ydd_m_b[i]) > self._accel_threshold[i] else 0.0
+            excited = abs(ydd_m_b[i]) > self._accel_threshold[i]
+            self._excited[i] = excited
+            rate2 = -self._gamma_m[i] * v2 * s if excited else 0.0
             rate1 = -self._gamma_c[i] * v1 * s if abs(yd_m_b[i]) > self._velocity_threshold[i] else 0.0
-            for values, gamma, rate, nominal in ((self._a2, self._gamma_m[i], rate2, self._a2_nominal[i]),
-                                                 (self._a1, self._gamma_c[i], rate1, self._a1_nominal[i])):
-                k = sigma * gamma
-                if k > 0.0:
-                    # σ-modification â̇ = f − σΓ(â − â_nom), solved exactly over dt with f held constant
-                    target = nominal + rate / k
-                    values[i] = target + (values[i] - target) * math.exp(-k * dt)
-                else:
-                    values[i] += dt * rate
+            if sigma > 0.0:
+                for values, gamma, rate, nominal in ((self._a2, self._gamma_m[i], rate2, self._a2_nominal[i]),
+                                                     (self._a1, self._gamma_c[i], rate1, self._a1_nominal[i])):
+                    k = sigma * gamma
+                    if k > 0.0:
+                        # σ-modification â̇ = f − σΓ(â − â_nom), solved exactly over dt with f held constant
+                        target = nominal + rate / k
+                        values[i] = target + (values[i] - target) * math.exp(-k * dt)
+                    else:
+                        values[i] += dt * rate
+            else:  # no leakage (the default): the plain integral of (21) over the sample
+                self._a2[i] += dt * rate2
+                self._a1[i] += dt * rate1
             # projection onto the physical bounds
             self._a2[i] = min(max(self._a2[i], self._a2_bounds[0][i]), self._a2_bounds[1][i])
             self._a1[i] = min(max(self._a1[i], self._a1_bounds[0][i]), self._a1_bounds[1][i])

@@ -198,6 +198,9 @@ class _FrameFilter:
         self._tau = np.zeros(3)
         n = index.n
         self._lf_tail = np.zeros(6)          # [bias (3), ν (3)]: contiguous in the state vector
+        self._eta0 = index.eta.start
+        self._lf_slice = slice(index.bias.start, index.nu.stop)
+        self._wf0 = None if index.xi2 is None else index.xi2.start
         self.output = WaveFilterOutput(
             eta_hat_n=np.zeros(3), nu_hat_b=self._lf_tail[3:6], bias_hat_b=self._lf_tail[0:3],
             eta_wf_hat_n=np.zeros(3),
@@ -291,16 +294,15 @@ class _FrameFilter:
     def _write_pose(self, x_hat: np.ndarray) -> None:
         """LF pose, velocity, bias and WF motion from the (blended) state, to NED."""
         out = self.output
-        idx = self.index
         c = math.cos(self._psi_frame)
         s = math.sin(self._psi_frame)
         v = x_hat.tolist()                  # Python floats: cheaper than numpy scalars for a few values
-        e0 = idx.eta.start
+        e0 = self._eta0
         xp, yp = v[e0], v[e0 + 1]
         out.eta_hat_n[:] = (c * xp - s * yp, s * xp + c * yp, ssa(v[e0 + 2]))
-        np.copyto(self._lf_tail, x_hat[idx.bias.start:idx.nu.stop])   # bias_hat_b and nu_hat_b are views
-        if idx.xi2 is not None:
-            w0 = idx.xi2.start
+        np.copyto(self._lf_tail, x_hat[self._lf_slice])   # bias_hat_b and nu_hat_b are views
+        w0 = self._wf0
+        if w0 is not None:
             wx, wy = v[w0], v[w0 + 1]
             out.eta_wf_hat_n[:] = (c * wx - s * wy, s * wx + c * wy, v[w0 + 2])
 
@@ -428,6 +430,28 @@ class BankWaveFilter(_FrameFilter):
             raise RuntimeError("internal: the rotation view must alias the state array")
         self._xy_tmp = np.zeros((N, blocks, 2))
         self._rot = np.eye(2)
+        # Views the step reuses (creating a view costs about as much as a small numpy operation)
+        self._Ht = self.H.T
+        self._K_slots = [self.K[i] for i in range(len(codes))]                    # (N, n, 3) per pattern
+        self._P_post_diag_slots = [self.P_post_diag[i] for i in range(len(codes))]
+        self._eps_col = self._eps[:, :, None]
+        self._eps_yaw = self._eps[:, 2]
+        self._col0 = self._col[:, :, 0]
+        self._xa_tau = self._xa[:, n:]
+        self._xa_col = self._xa[:, :, None]
+        self._x_col = self.x[:, :, None]
+        self._x_heading = self.x[:, self._heading]
+        self._x_wf = self.x[:, self._wf0:self._wf0 + 3] if self._wf0 is not None else None
+        self._x_post_heading = self._x_post[:, self._heading]
+        self._S9 = self.S_prior.reshape(N, 9)
+        self._pm_yhat = np.zeros((N, 3))
+        self._pm_dev = np.zeros((N, 3))
+        self._pm_devp = np.zeros((N, 3))
+        self._pm_mean = np.zeros(3)
+        self._pm_S = np.zeros(9)
+        self._pm_C = np.zeros((3, 3))
+        self._pm_devpT = self._pm_devp.T
+        self._p_col = self.p[:, None]                 # the weights are always updated in place
         out = self.output
         out.omegas_rad_s = tuple(float(w) for w in self.omegas)
         out.weights = self.p if kind == "mmae" else None
@@ -454,19 +478,33 @@ class BankWaveFilter(_FrameFilter):
         self.output.measured = (False, False, False)
 
     def predicted_measurement(self) -> tuple[np.ndarray, np.ndarray]:
+        """The bank's predicted measurement and its variance, in NED (seed 000 eq. (16) for the mean).
+
+        With the models' predictions ŷ_i (vessel-parallel), their weighted mean m = Σ p_i ŷ_i and
+        spread C = Σ p_i (ŷ_i − m)(ŷ_i − m)ᵀ, and S̄ = Σ p_i S_i, the mixture's innovation covariance is
+        S̄ + C; in NED its diagonal is diag(R (S̄ + C) Rᵀ) — R rotates the north/east block only, so
+        the 3 × 3 algebra is written out on Python floats.
+        """
         if not self._initialized:
             raise RuntimeError("wave filter not initialised: call reset(y_n) on the first fix")
         c, s = math.cos(self._psi_frame), math.sin(self._psi_frame)
-        yhat = self.x @ self.H.T                                              # (N, 3) vessel-parallel
-        rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        yhat_n = yhat @ rot.T                                                 # (N, 3) NED
         p = self.p
-        mean = p @ yhat_n
-        dev = yhat_n - mean
-        S_n = np.einsum("ij,njk,lk->nil", rot, self.S_prior, rot)             # R S_i Rᵀ
-        var = p @ np.einsum("nii->ni", S_n) + p @ (dev * dev)
-        mean[2] = ssa(float(mean[2]))
-        return mean, var
+        yhat = self._pm_yhat
+        np.matmul(self.x, self._Ht, out=yhat)                                    # (N, 3) vessel-parallel
+        mean = self._pm_mean
+        np.matmul(p, yhat, out=mean)
+        dev = self._pm_dev
+        np.subtract(yhat, mean, out=dev)
+        np.multiply(dev, self._p_col, out=self._pm_devp)
+        np.matmul(self._pm_devpT, dev, out=self._pm_C)                          # Σ p_i d_i d_iᵀ
+        np.matmul(p, self._S9, out=self._pm_S)                                  # Σ p_i S_i
+        s00, s01, _, s10, s11, _, _, _, s22 = self._pm_S.tolist()
+        (c00, c01, _), (c10, c11, _), (_, _, c22) = self._pm_C.tolist()
+        m00, m11, m22, m_cross = s00 + c00, s11 + c11, s22 + c22, s01 + s10 + c01 + c10
+        var = np.array([c * c * m00 - c * s * m_cross + s * s * m11,
+                        s * s * m00 + c * s * m_cross + c * c * m11, m22])
+        m0, m1, m2 = mean.tolist()
+        return np.array([c * m0 - s * m1, s * m0 + c * m1, ssa(m2)]), var
 
     def step(self, y_n: np.ndarray | None, tau_b: np.ndarray,
              measured: tuple[bool, bool, bool] = (True, True, True)) -> WaveFilterOutput:
@@ -476,7 +514,7 @@ class BankWaveFilter(_FrameFilter):
         if code & _HEADING:
             psi_new = ssa(self._y[2])
         else:
-            psi_total = float(self.p @ x[:, self._heading])
+            psi_total = float(self.p @ self._x_heading)
             if self._wf_heading is not None:
                 psi_total += float(self.p @ x[:, self._wf_heading])
             psi_new = ssa(psi_total)
@@ -486,18 +524,18 @@ class BankWaveFilter(_FrameFilter):
         x_post = self._x_post
         if code != _NONE:
             self._to_vessel_parallel(code)
-            np.matmul(x, self.H.T, out=self._yhat)
+            np.matmul(x, self._Ht, out=self._yhat)
             np.subtract(self._yp, self._yhat, out=eps)
             # Yaw innovation wrapped with ssa: the models' predicted headings differ by far less
             # than π, so one whole-turn offset (from model 0) wraps every model's innovation.
             raw = float(eps[0, 2])
             wrap = ssa(raw) - raw
             if wrap != 0.0:
-                eps[:, 2] += wrap
+                self._eps_yaw += wrap
             eps *= _MASKS[code]
             slot = self._code_slot[code]
-            np.matmul(self.K[slot], eps[:, :, None], out=self._col)
-            np.add(x, self._col[:, :, 0], out=x_post)
+            np.matmul(self._K_slots[slot], self._eps_col, out=self._col)
+            np.add(x, self._col0, out=x_post)
             if self.kind == "mmae":
                 self._update_weights(slot, code)
         else:
@@ -507,12 +545,12 @@ class BankWaveFilter(_FrameFilter):
         # Keep the heading states continuous but near (−π, π]: shift every model by whole turns.
         turns = round(float(self._x_hat[self._heading]) / (2.0 * math.pi))
         if turns:
-            x_post[:, self._heading] -= turns * 2.0 * math.pi
+            self._x_post_heading -= turns * 2.0 * math.pi
             self._x_hat[self._heading] -= turns * 2.0 * math.pi
         self._write_outputs(code)
         # 3. Prediction (seed 002 eq. (52)) with the delivered force: x̄ = [Φ Γ]·[x̂ | τ].
-        self._xa[:, -3:] = self._tau
-        np.matmul(self._Phi_aug, self._xa[:, :, None], out=x[:, :, None])
+        np.copyto(self._xa_tau, self._tau)
+        np.matmul(self._Phi_aug, self._xa_col, out=self._x_col)
         return self.output
 
     def set_frame_heading(self, psi_rad: float) -> None:
@@ -553,14 +591,13 @@ class BankWaveFilter(_FrameFilter):
             # band-limited, locally whitened, tempered (weighting.BandLikelihood); the memory runs on
             # evidence time: a gated (invalid) period neither adds evidence nor forgets the old.
             # y − η̂_LF (blended prior) = Σ p_i (ε_i + ξ2_i): the WF motion + noise, for the WF share
-            w0 = self.index.xi2.start  # type: ignore[union-attr]  (mmae always has wave states)
             residual = self._residual
-            np.matmul(self.p, self.x[:, w0:w0 + 3], out=residual)
+            np.matmul(self.p, self._x_wf, out=residual)                # (mmae always has wave states)
             residual += np.matmul(self.p, eps, out=self._eps_bar)   # (_eps_bar is rewritten later)
             if not band.update(eps, (code & _POSITION) == _POSITION, bool(code & _HEADING), residual):
                 return
             np.copyto(self._log_l, band.log_l)
-            forgetting = forgetting ** float(band.gate.max())
+            forgetting = forgetting ** band.gate_max
         elif self._common:
             # log L_i = −½ εᵢᵀ S̄⁻¹ εᵢ with the common diagonal S̄ (minimum-energy criterion).
             np.multiply(eps, eps, out=self._eps2)
@@ -592,7 +629,7 @@ class BankWaveFilter(_FrameFilter):
         dev = self._dev
         np.subtract(self._x_post, self._x_hat, out=dev)
         np.multiply(dev, dev, out=dev)
-        dev += self.P_post_diag[slot]
+        dev += self._P_post_diag_slots[slot]
         np.matmul(p, dev, out=out.covariance_diag)
         np.matmul(p, self._eps, out=self._eps_bar)
         self._write_innovation(self._eps_bar)

@@ -96,6 +96,11 @@ from scipy.signal import butter, sosfilt
 
 _NEWTON_ITERATIONS = 8
 _NEWTON_TOLERANCE = 1e-12
+# The C reductions behind ndarray.max/min/sum (same results), without the Python-level wrappers that
+# cost more than the reduction of a handful of values in the control loop.
+_MAX = np.maximum.reduce
+_MIN = np.minimum.reduce
+_SUM = np.add.reduce
 
 
 def apply_floor(p: np.ndarray, floor: float) -> None:
@@ -179,10 +184,10 @@ def bayes_step(log_w: np.ndarray, p: np.ndarray, log_likelihood: np.ndarray, *, 
     """
     log_w *= forgetting
     log_w += log_likelihood
-    log_w -= log_w.max()
+    log_w -= _MAX(log_w)      # ufunc reductions: ndarray.max/.sum without their Python-level wrappers
     np.maximum(log_w, log_floor, out=log_w)
     np.exp(log_w, out=p)
-    p /= p.sum()
+    p /= _SUM(p)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -335,11 +340,11 @@ class BandLikelihood:
         n_state = self._prefilter(1).A.shape[0]           # also checks the band at the control period
         rows = self.n_models + 1                           # the bank's innovations + the residual row
         self.state = np.zeros((rows, 3, 1, n_state))        # prefilter states per row and channel
-        self._state_new = np.zeros_like(self.state)
+        # [y | z'] = z [Cᵀ | Aᵀ] + x [D | Bᵀ]: outputs (band, low) then the next states, per row and channel
+        self._yz = np.zeros((rows, 3, 1, 2 + n_state))
+        self._yz_in = np.zeros_like(self._yz)
+        self._z_new = self._yz[..., 2:]
         self._x = np.zeros((rows, 3))
-        self._out = np.zeros((rows, 3, 1, 2))               # (band, low) outputs
-        self._bx = np.zeros_like(self.state)
-        self._dx = np.zeros_like(self._out)
         self._sq = np.zeros((rows, 3, 2))
         self._energy = np.zeros((rows, _GROUPS, 2))         # per group: band, low energy
         self.means = np.zeros((rows, _GROUPS, 2))           # short-window EWMA numerators
@@ -352,11 +357,28 @@ class BandLikelihood:
         self.wf_energy = [float(v) for v in self._prior]
         self.wf_share = [v / max(sum(self.wf_energy), 1e-300) for v in self.wf_energy]
         self.gate = np.zeros(_GROUPS)                       # last γ_g (diagnostics)
+        self.gate_max = 0.0                                 # max_g γ_g of the last update that had evidence
         self.log_l = np.zeros(self.n_models)
         self._decay = np.ones((1, _GROUPS, 1))
         self._gain = np.zeros((1, _GROUPS, 1))
         self._coef = np.zeros(_GROUPS)
         self._work = np.zeros((rows, _GROUPS, 2))
+        # views the update reuses (creating a view costs about as much as a small numpy operation)
+        n = self.n_models
+        self._x_bank = self._x[:-1]
+        self._x_residual = self._x[-1]
+        self._x_heading = self._x[:, 2]
+        self._xs = self._x[:, :, None, None]
+        self._out_yx = self._yz[:, :, 0, :2]                # (rows, channel, [band, low])
+        self._sq_pos = (self._sq[:, 0, :], self._sq[:, 1, :])
+        self._sq_psi = self._sq[:, 2, :]
+        self._energy_pos = self._energy[:, 0, :]
+        self._energy_psi = self._energy[:, 1, :]
+        self._energy_band = self._energy[:n, :, 0]
+        self._band_means = [self.means[:n, g, 0] for g in range(_GROUPS)]
+        self._low_means = [self.means[:n, g, 1] for g in range(_GROUPS)]
+        self._decay_flat = self._decay.reshape(_GROUPS)
+        self._gain_flat = self._gain.reshape(_GROUPS)
 
     # -- configuration ----------------------------------------------------------------------------
     def _prefilter(self, gap: int) -> _Prefilter:
@@ -366,16 +388,15 @@ class BandLikelihood:
         return pre
 
     def _stack(self, gaps: tuple[int, int]) -> tuple[np.ndarray, ...]:
-        """Per-channel (Aᵀ, B, Cᵀ, D) stacks and the held-state mask for the groups' gaps (0: not measured)."""
+        """Per-channel ``[Cᵀ | Aᵀ]`` (3, s, 2 + s) and ``[D | Bᵀ]`` (3, 1, 2 + s) stacks — outputs and next
+        states in one product — and the held-state mask for the groups' gaps (0: not measured)."""
         stack = self._stacks.get(gaps)
         if stack is None:
             pres = [self._prefilter(max(gaps[g], 1)) for g in (0, 0, 1)]
-            At = np.stack([p.A.T for p in pres])                          # (3, s, s)
-            B = np.stack([p.B for p in pres])[:, None, :]                 # (3, 1, s)
-            Ct = np.stack([p.C.T for p in pres])                          # (3, s, 2)
-            D = np.stack([p.D for p in pres])[:, None, :]                 # (3, 1, 2)
+            CAt = np.stack([np.concatenate([p.C.T, p.A.T], axis=1) for p in pres])
+            DB = np.stack([np.concatenate([p.D, p.B]) for p in pres])[:, None, :]
             active = np.array([gaps[g] > 0 for g in (0, 0, 1)])[None, :, None, None]
-            stack = self._stacks[gaps] = (At, B, Ct, D, active)
+            stack = self._stacks[gaps] = (CAt, DB, active)
         return stack
 
     def restart(self) -> None:
@@ -401,7 +422,6 @@ class BandLikelihood:
             Measurement minus the blended LF pose estimate, vessel-parallel [m, m, rad] (WF motion +
             noise), for the WF share λ_g.
         """
-        self.log_l[:] = 0.0
         measured = (position, heading)
         since = self.steps_since
         gaps = [0, 0]
@@ -417,36 +437,36 @@ class BandLikelihood:
                     gap = 1
                 gaps[g] = gap
         if gaps == [0, 0]:
+            self.log_l[:] = 0.0
             return False
-        At, B, Ct, D, active = self._stack((gaps[0], gaps[1]))
+        CAt, DB, active = self._stack((gaps[0], gaps[1]))
         # inputs: rows 0..N−1 the bank's innovations, row N the residual; heading as ψ·L/2
-        x = self._x
-        x[:-1] = eps
-        x[-1] = residual
-        x[:, 2] *= self.heading_scale_m
-        xs = x[:, :, None, None]
-        # outputs y = C z + D x, then states z' = A z + B x (one batched matmul each)
-        np.matmul(self.state, Ct, out=self._out)
-        np.multiply(xs, D, out=self._dx)
-        self._out += self._dx
-        np.matmul(self.state, At, out=self._state_new)
-        np.multiply(xs, B, out=self._bx)
-        self._state_new += self._bx
-        np.copyto(self.state, self._state_new, where=active)
-        # group energies (band, low) and their short-window EWMAs; an unmeasured group: decay 1, gain 0
-        np.multiply(self._out[:, :, 0, :], self._out[:, :, 0, :], out=self._sq)
-        np.einsum("nco,cg->ngo", self._sq, _CHANNEL_GROUP, out=self._energy)
-        decay = self._decay
-        gain = self._gain
+        np.copyto(self._x_bank, eps)
+        np.copyto(self._x_residual, residual)
+        self._x_heading *= self.heading_scale_m
+        # outputs y = C z + D x and states z' = A z + B x of every row and channel: one batched matmul
+        np.matmul(self.state, CAt, out=self._yz)
+        np.multiply(self._xs, DB, out=self._yz_in)
+        self._yz += self._yz_in
+        if gaps[0] and gaps[1]:
+            np.copyto(self.state, self._z_new)
+        else:
+            np.copyto(self.state, self._z_new, where=active)
+        # group energies (band, low): position = north² + east², heading = (ψ·L/2)²
+        np.multiply(self._out_yx, self._out_yx, out=self._sq)
+        np.add(self._sq_pos[0], self._sq_pos[1], out=self._energy_pos)
+        np.copyto(self._energy_psi, self._sq_psi)
+        # their short-window EWMAs; an unmeasured group: decay 1, gain 0
+        decay = self._decay_flat
+        gain = self._gain_flat
         for g in range(_GROUPS):
             a = math.exp(-gaps[g] * self.dt_s / self.scale_time_s) if gaps[g] else 1.0
-            decay[0, g, 0] = a
-            gain[0, g, 0] = 1.0 - a
+            decay[g] = a
+            gain[g] = 1.0 - a
             self.weight_sum[g] = a * self.weight_sum[g] + (1.0 - a)
-        self.means *= decay
-        self.means += np.multiply(self._energy, gain, out=self._work)
+        self.means *= self._decay
+        self.means += np.multiply(self._energy, self._gain, out=self._work)
         used = False
-        n = self.n_models
         for g in range(_GROUPS):
             self._coef[g] = 0.0
             if not gaps[g]:
@@ -454,21 +474,25 @@ class BandLikelihood:
             pre = self._prefilter(gaps[g])
             self._share_update(g, gaps[g], pre)
             weight = self.weight_sum[g]
-            band_means = self.means[:n, g, 0]
-            scale = float(band_means.min()) / weight
-            band_total = float(band_means.sum())
+            band_means = self._band_means[g]
+            scale = float(_MIN(band_means)) / weight
+            band_total = float(_SUM(band_means))
             lam = self.wf_share[g]
             if not (scale > 0.0 and band_total > 0.0 and lam > 0.0):
                 self.gate[g] = 0.0
                 continue
-            excess = float(self.means[:n, g, 1].sum()) / band_total / pre.white_ratio
+            excess = float(_SUM(self._low_means[g])) / band_total / pre.white_ratio
             gate = weight * min(1.0, self.lf_excess_limit / excess) if excess > 0.0 else weight
             self.gate[g] = gate
             kappa = pre.band_width_rad_s * gaps[g] * self.dt_s / math.pi
             self._coef[g] = -0.5 * lam * gate * kappa / scale
             used = True
         if used:
-            np.matmul(self._energy[:n, :, 0], self._coef, out=self.log_l)
+            np.matmul(self._energy_band, self._coef, out=self.log_l)
+            # the largest gate of the bank, for the weights' forgetting (groups not measured keep theirs)
+            self.gate_max = float(_MAX(self.gate))
+        else:
+            self.log_l[:] = 0.0
         return used
 
     def _share_update(self, g: int, gap: int, pre: _Prefilter) -> None:

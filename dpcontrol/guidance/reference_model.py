@@ -185,6 +185,11 @@ def reference_config_from_mapping(value: object, vessel: VesselData, path: str =
 
 
 def _finite3(name: str, value: Any) -> tuple[float, float, float]:
+    if type(value) is np.ndarray and value.shape == (3,) and value.dtype == np.float64:
+        a, b, c = value.tolist()  # three float checks are cheaper than np.isfinite(...).all()
+        if math.isfinite(a) and math.isfinite(b) and math.isfinite(c):
+            return a, b, c
+        raise ValueError(f"{name} must be 3 finite numbers, got {value!r}")
     array = np.asarray(value, dtype=float)
     if array.shape != (3,) or not np.all(np.isfinite(array)):
         raise ValueError(f"{name} must be 3 finite numbers, got {value!r}")
@@ -206,12 +211,14 @@ class ReferenceModel:
     initialises the model at the first set-point.
     """
 
-    __slots__ = ("_a", "_config", "_initialised", "_omega", "_rf", "_v", "_x", "_zeta")
+    __slots__ = ("_a", "_config", "_initialised", "_omega", "_rate", "_rf", "_v", "_x", "_zeta")
 
     def __init__(self, config: ReferenceModelConfig) -> None:
         self._config = config
         self._omega = tuple(2.0 * math.pi / p for p in config.natural_period_s)
         self._zeta = config.relative_damping
+        # fastest rate of the model, max(2ζω, ω) over the DOFs: sets the integration sub-steps
+        self._rate = max(max(2.0 * z * w, w) for z, w in zip(self._zeta, self._omega, strict=True))
         self._rf = [0.0, 0.0, 0.0]
         self._x = [0.0, 0.0, 0.0]
         self._v = [0.0, 0.0, 0.0]
@@ -283,8 +290,7 @@ class ReferenceModel:
         cfg = self._config
         w_n, w_e, w_p = self._omega
         z_n, z_e, z_p = self._zeta
-        rate = max(2.0 * z_n * w_n, 2.0 * z_e * w_e, 2.0 * z_p * w_p, w_n, w_e, w_p)
-        substeps = max(1, math.ceil(dt_s * rate / _STEP_ACCURACY))
+        substeps = max(1, math.ceil(dt_s * self._rate / _STEP_ACCURACY))
         h = dt_s / substeps
         vmax = cfg.max_speed_mps
         amax = cfg.max_accel_mps2

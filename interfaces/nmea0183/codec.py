@@ -407,6 +407,16 @@ _CHECKSUM_FIELD_RE = re.compile(rb"\*[0-9A-Fa-f]{2}")
 _ADDRESS_RE = re.compile(rb"[$!]([A-Z][A-Z0-9]{3,5}),")
 
 
+_STARTS = frozenset(b"$!")
+
+
+def _single_sentence(data: bytes) -> bool:
+    """Whether ``data`` is exactly one sentence: a ``$``/``!`` start, no other start, CR LF only at its end."""
+    n = len(data)
+    return (n > 2 and data[0] in _STARTS and data.find(b"\n") == n - 1 and data.find(b"\r") == n - 2
+            and data.find(b"$", 1) < 0 and data.find(b"!", 1) < 0)
+
+
 @dataclass(frozen=True, slots=True)
 class Frame:
     """One unit of the input stream and what became of it (for the recorder and for tests).
@@ -502,6 +512,11 @@ class Nmea0183Decoder:
         """Like :meth:`feed`, but one :class:`Frame` per sentence or garbage run, ignored ones included."""
         out: list[Frame] = []
         buf = self._buf
+        if not buf and not self._continuation and type(data) is bytes and _single_sentence(data):
+            # the usual chunk, one whole sentence (a device writes each sentence in one go): what the
+            # general framing below does with it, without splitting lines and looking for starts
+            self._sentence(data[:-2], out)
+            return out
         buf += data
         last = max(buf.rfind(b"\n"), buf.rfind(b"\r"))
         if last >= 0:
@@ -555,6 +570,9 @@ class Nmea0183Decoder:
         """Split a line (or line fragment) at sentence starts; decode the terminated last sentence."""
         continuation = self._continuation
         self._continuation = False
+        if terminated and line[0] in _STARTS and line.find(b"$", 1) < 0 and line.find(b"!", 1) < 0:
+            self._sentence(line, out)  # the usual line: one sentence (what the general split below gives)
+            return
         starts = [match.start() for match in _START_RE.finditer(line)]
         if not starts:
             if not continuation:
@@ -662,14 +680,22 @@ def decode_sentence(sentence: bytes | str, max_sentence_chars: int = NMEA_MAX_SE
 # encoders (what the plant emulator sends)
 
 _TALKER_RE = re.compile(r"[A-Z0-9]{2}")
+_checksum = pynmea2.NMEASentence.checksum
 
 
 def _render(talker: str, sentence_type: str, fields: list[str]) -> bytes:
-    """``$<talker><type>,<fields>*hh\\r\\n`` through pynmea2 (its checksum and rendering)."""
+    """``$<talker><type>,<fields>*hh\\r\\n`` with pynmea2's checksum.
+
+    The text is what ``TalkerSentence.render(checksum=True, dollar=True, newline="\\r\\n")`` writes
+    (identifier, comma-joined fields, ``*%02X`` of pynmea2's checksum); formatting it here skips building
+    a sentence object whose attribute hooks cost more than the rest of the encoding.
+    """
     if not _TALKER_RE.fullmatch(talker):
         raise ValueError(f"talker {talker!r} is not two upper-case letters or digits")
-    sentence = pynmea2.TalkerSentence.sentence_types[sentence_type](talker, sentence_type, fields)
-    out = sentence.render(checksum=True, dollar=True, newline="\r\n").encode("ascii")
+    if sentence_type not in pynmea2.TalkerSentence.sentence_types:
+        raise ValueError(f"pynmea2 does not know the sentence type {sentence_type!r}")
+    body = f"{talker}{sentence_type},{','.join(fields)}"
+    out = f"${body}*{_checksum(body):02X}\r\n".encode("ascii")
     if len(out) > NMEA_MAX_SENTENCE_CHARS:
         raise ValueError(f"{talker}{sentence_type} would be {len(out)} characters > {NMEA_MAX_SENTENCE_CHARS}")
     return out

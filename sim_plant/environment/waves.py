@@ -140,11 +140,13 @@ class WaveField:
         self._tmp = np.empty(n)
         self._sin = np.empty(n)
         self._cos = np.empty(n)
-        self._ax = np.empty(n)
-        self._ay = np.empty(n)
-        self._apsi = np.empty(n)
-        self._apsi_w = np.empty(n)
-        self._apsi_k = np.empty(n)
+        # The weights of the sums over the components, as rows of two matrices so that evaluate() forms
+        # the seven sums with two matrix-vector products: rows multiplying sin φ (x, y, ψ̇ from ω, ψ̇ from
+        # the Doppler term, Im A) and rows multiplying cos φ (ψ, Re A); _ax ... are views of the rows.
+        self._weights_sin = np.zeros((5, n))
+        self._weights_cos = np.zeros((2, n))
+        self._ax, self._ay, self._apsi_w, self._apsi_k, self._b_sin = self._weights_sin
+        self._apsi, self._b_cos = self._weights_cos
         self._beta_cached = math.inf
         self._drift_factors = (0.0, 0.0, 0.0)
         self.set_hull(hull)
@@ -160,6 +162,8 @@ class WaveField:
         self._table_psi = rpsi * self._a
         r = reflection_coefficient(self._omega, hull.draft_m)
         self._b = math.sqrt(0.5 * self._rho * GRAVITY_MPS2 * self._drift_scale) * r * self._a
+        self._b_sin[:] = self._b
+        self._b_cos[:] = self._b
         self._beta_cached = math.inf
 
     def _refresh(self, beta: float) -> None:
@@ -213,14 +217,10 @@ class WaveField:
         phi += self._eps
         np.sin(phi, out=self._sin)
         np.cos(phi, out=self._cos)
-        s = self._sin
-        c = self._cos
-        x = float(np.dot(self._ax, s))
-        y = float(np.dot(self._ay, s))
-        psi = -float(np.dot(self._apsi, c))
-        psi_rate = float(np.dot(self._apsi_w, s)) - d_rate * float(np.dot(self._apsi_k, s))
-        return (weight * x, weight * y, weight * psi, weight * psi_rate,
-                weight * float(np.dot(self._b, c)), weight * float(np.dot(self._b, s)))
+        x, y, psi_rate_w, psi_rate_k, im_a = (self._weights_sin @ self._sin).tolist()
+        psi, re_a = (self._weights_cos @ self._cos).tolist()
+        psi_rate = psi_rate_w - d_rate * psi_rate_k
+        return (weight * x, weight * y, -weight * psi, weight * psi_rate, weight * re_a, weight * im_a)
 
     def drift_factors(self) -> tuple[float, float, float]:
         """Direction factors (l_x, l_y, l_n) for the β of the last :meth:`evaluate`."""
