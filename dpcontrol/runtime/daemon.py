@@ -34,10 +34,11 @@ import numpy as np
 
 from dpcontrol.runtime.alarms import AlarmRegistry, Severity
 from dpcontrol.runtime.config import DaemonConfig, TransportConfig, config_summary
-from dpcontrol.runtime.inputs import SensorRouter
+from dpcontrol.runtime.inputs import SensorRouter, link_source
 from dpcontrol.runtime.persist import BackgroundSaver, StateStore
 from dpcontrol.runtime.step import DpController, Mode, StepOutput
 from dpcontrol.runtime.thrusters import ThrusterFeedback
+from dpcontrol.runtime.transport_health import InputHealth
 from interfaces.messages import LinkStatus, Measurement, RejectedInput
 from interfaces.recorder import Recorder, TopicSpec, default_topics
 from interfaces.systemd import SystemdNotifier
@@ -57,30 +58,19 @@ RUNTIME_TOPICS = (
     TopicSpec("state_loaded", "dpcontrol.state", "Persisted state the daemon resumed from (bumpless restart).",
               {"state": {"type": "object"}}),
 )
-ERROR_WINDOW_S = 10.0
-
-
-@dataclass
-class _TransportHealth:
-    """Decoded vs rejected inputs of one transport over a sliding window (error-rate alarm)."""
-
-    events: collections.deque[tuple[float, bool]] = field(default_factory=lambda: collections.deque(maxlen=4096))
-    rejected_total: int = 0
-    ok_total: int = 0
-
-    def add(self, t_s: float, ok: bool) -> None:
-        self.events.append((t_s, ok))
-        if ok:
-            self.ok_total += 1
-        else:
-            self.rejected_total += 1
-
-    def rate(self, t_s: float) -> tuple[float, int]:
-        events = self.events
-        while events and t_s - events[0][0] > ERROR_WINDOW_S:
-            events.popleft()
-        bad = sum(1 for _, ok in events if not ok)
-        return (bad / len(events) if events else 0.0), bad
+def status_payload(controller: DpController, alarms: AlarmRegistry, t_s: float, seq: int,
+                   cycle: schemas.CycleTiming | None = None) -> bytes:
+    """The ``dp/<vessel>/status`` payload: mode, per-sensor health, alarms (active and recently cleared),
+    thruster availability and cycle timing. The lockstep simulation builds the same payload."""
+    # texts are bounded by the status schema (256 characters)
+    sensors = [schemas.SensorHealth(s["name"], s["kind"], s["state"], s["age_s"], s["weight"], s["detail"][:256])
+               for s in controller.hub.sensor_status(t_s)]
+    listed = [schemas.Alarm(a.code, a.severity.name.lower(), a.text[:256], a.since_t_s, a.active)
+              for a in alarms.listed(t_s)]
+    thrusters = [schemas.ThrusterAvailability(t["name"], t["available"], t["detail"][:256])
+                 for t in controller.monitor.status()]
+    return schemas.status_payload(t_s=t_s, seq=seq, mode=controller.mode.value, sensors=sensors,
+                                  alarms=listed, cycle=cycle, thrusters=thrusters)
 
 
 def request_as_dict(request: SetpointRequest) -> dict[str, Any]:
@@ -110,7 +100,9 @@ class InputPump:
         # of the raw input it came from, and every cycle records which it consumed: replay is exact.
         self._counter = itertools.count(1)
         self._last_raw_seq: dict[str, int] = {}
-        self.health = {t.name: _TransportHealth() for t in config.transports}
+        # decoded / malformed frames per transport and link changes: the same code as the lockstep runs
+        self.health = InputHealth([t.name for t in config.transports], self.router, config.hub.error_rate_alarm,
+                                  config.hub.error_rate_window_s)
         self._mav_pattern = re.compile(r"^mav:(\d+)/(\d+)/(.*)$")
         self._n2k_pattern = re.compile(r"^n2k:(\d+)$")
 
@@ -157,7 +149,7 @@ class InputPump:
         frame = line.frame
         ok = frame.rejected is None
         seq = next(self._counter)
-        self._queue.append(("health", transport, line.t_s, ok))
+        self._queue.append(("health", transport, line.t_s, None if ok else frame.rejected.reason))
         if self.recorder is not None:
             self.recorder.record_raw(transport, line.t_s, frame.raw, rejected=None if ok else frame.rejected.reason,
                                      sentence=frame.sentence or None, seq=seq)
@@ -169,14 +161,14 @@ class InputPump:
     def _n2k_event(self, transport: str, event: Any) -> None:
         if isinstance(event, Measurement):
             match = self._n2k_pattern.match(event.source)
-            self._queue.append(("health", transport, event.t_s, True))
+            self._queue.append(("health", transport, event.t_s, None))
             if match is not None:
                 sensor = self.router.nmea2000(transport, int(match.group(1)), event.message)
                 if sensor is not None:
                     seq = self._last_raw_seq.get(transport, 0)
                     self._queue.append((seq, Measurement(event.t_s, sensor, event.message)))
         elif isinstance(event, RejectedInput):
-            self._queue.append(("health", transport, event.t_s, False))
+            self._queue.append(("health", transport, event.t_s, event.rejected.reason))
             if self.recorder is not None:
                 self.recorder.record_raw(transport, event.t_s, event.rejected.raw, rejected=event.rejected.reason)
         elif isinstance(event, LinkStatus):
@@ -189,18 +181,22 @@ class InputPump:
     def _mav_event(self, transport: str, event: Any) -> None:
         if isinstance(event, Measurement):
             match = self._mav_pattern.match(event.source)
-            self._queue.append(("health", transport, event.t_s, True))
+            self._queue.append(("health", transport, event.t_s, None))
             if match is not None:
                 sensor = self.router.mavlink(transport, int(match.group(1)), match.group(3), event.message)
                 if sensor is not None:
                     seq = self._last_raw_seq.get(transport, 0)
                     self._queue.append((seq, Measurement(event.t_s, sensor, event.message)))
         elif isinstance(event, RejectedInput):
-            self._queue.append(("health", transport, event.t_s, False))
+            self._queue.append(("health", transport, event.t_s, event.rejected.reason))
             if self.recorder is not None:
                 self.recorder.record_raw(transport, event.t_s, event.rejected.raw, rejected=event.rejected.reason)
         elif isinstance(event, LinkStatus):
-            self._queue.append(LinkStatus(event.t_s, transport, event.connected, event.detail))
+            # one autopilot's heartbeat (``mav:<system>/<component>/HEARTBEAT``) concerns only its sensors;
+            # "nothing heard at all" concerns the whole link
+            match = self._mav_pattern.match(event.source)
+            source = link_source(transport, int(match.group(1)) if match is not None else None)
+            self._queue.append(LinkStatus(event.t_s, source, event.connected, event.detail))
         elif self.recorder is not None:  # RawPacket: decoded right after, on this thread
             seq = next(self._counter)
             self._last_raw_seq[transport] = seq
@@ -220,8 +216,8 @@ class InputPump:
                 sources.append(item[0])
                 measurements.append(item[1])
             else:
-                _, transport, t_s, ok = item
-                health[transport].add(t_s, ok)
+                _, transport, t_s, reason = item
+                health.count(transport, t_s, reason)
 
     def close(self) -> None:
         for reader in self._readers:
@@ -428,11 +424,7 @@ class Daemon:
         assert self.pump is not None and self.node is not None
         sources: list[int] = []
         self.pump.drain(measurements, links, sources)
-        for status in links:
-            for sensor in self.pump.router.sensors_on(status.source):
-                self.controller.hub.set_disconnected(sensor, not status.connected)
-            self.alarms.set(t_s, f"transport.{status.source}.link", not status.connected, Severity.WARNING,
-                            f"{status.source}: link lost ({status.detail})")
+        self.pump.health.apply_links(t_s, links, self.controller.hub, self.alarms)
         requests = [received.message for received in self._setpoints.sink.drain()]
         rejected = self._setpoints.stats
         if rejected.rejected != self._setpoints_rejected:
@@ -464,7 +456,7 @@ class Daemon:
             azimuth_rad=out.azimuth_rad, enabled=out.enabled))
         published = self.clock()
         self._publish_rest(t_s, seq, out)
-        self._error_rate_alarms(t_s)
+        self.pump.health.update_alarms(t_s, self.alarms)
         drives = self._drives.state
         self.alarms.set(t_s, "thrusters.drives_lost", drives.seen and not drives.present, Severity.ALARM,
                         "the thruster drives' liveliness token is gone (dp/<vessel>/alive/plant)")
@@ -502,25 +494,9 @@ class Daemon:
             self._cycle_summary = self.stats.summary()
             self._last_stats_t = t_s
         durations = self._cycle_summary.get("cycle_duration_us", {})
-        # texts are bounded by the status schema (256 characters)
-        sensors = [schemas.SensorHealth(s["name"], s["kind"], s["state"], s["age_s"], s["weight"], s["detail"][:256])
-                   for s in self.controller.hub.sensor_status(t_s)]
-        alarms = [schemas.Alarm(a.code, a.severity.name.lower(), a.text[:256], a.since_t_s, a.active)
-                  for a in self.alarms.listed(t_s)]
-        thrusters = [schemas.ThrusterAvailability(t["name"], t["available"], t["detail"][:256])
-                     for t in self.controller.monitor.status()]
         cycle = schemas.CycleTiming(self.config.sample_time_s, durations.get("median"), durations.get("p99"),
                                     self.stats.missed_deadlines)
-        return schemas.status_payload(t_s=t_s, seq=seq, mode=self.controller.mode.value, sensors=sensors,
-                                      alarms=alarms, cycle=cycle, thrusters=thrusters)
-
-    def _error_rate_alarms(self, t_s: float) -> None:
-        assert self.pump is not None
-        limit = self.config.hub.error_rate_alarm
-        for name, health in self.pump.health.items():
-            rate, bad = health.rate(t_s)
-            self.alarms.set(t_s, f"transport.{name}.error_rate", rate > limit and bad >= 5, Severity.WARNING,
-                            f"{name}: {100 * rate:.0f} % of the inputs rejected in the last {ERROR_WINDOW_S:g} s")
+        return status_payload(self.controller, self.alarms, t_s, seq, cycle)
 
     def _record(self, t_s: float, out: StepOutput, seq: int) -> None:
         recorder = self.recorder

@@ -11,16 +11,29 @@ applied to every position and heading sensor:
   ``max(jump_min, k·√(S + σ²))`` is rejected at once; a sensor rejected continuously for
   ``reject_persist_s`` while the others agree is marked *rejected*;
 * **variance**: each reference's residual variance about the prediction is tracked; its weight in
-  the fusion is the inverse of that variance (or of its GST statistics when present), and an alarm
-  is raised when it exceeds ``variance_alarm_factor``² × the nominal variance;
+  the fusion is the inverse of the larger of that variance and its GST statistics (when present),
+  and an alarm is raised when it exceeds ``variance_alarm_factor``² × the nominal variance and the
+  quietest other reference's (after one ``variance_time_constant_s`` of samples; hysteresis);
 * **median** (≥ 3 references): a reference further than ``median_limit`` from the median for
   ``median_persist_s`` is *isolated*; with two references a disagreement raises an alarm without
-  isolation.
+  isolation;
+* **re-estimation**: when every live reference of a kind has failed the prediction test for
+  ``reject_persist_s`` and none had a sample accepted in that time, it is the estimate that is wrong
+  (long dead reckoning): the references are trusted again and the caller re-initialises the estimator.
 
 Fusion is the inverse-variance weighted mean of the healthy references (latest samples, moved to
-the present with the estimated LF velocity). When the set of references in use changes, the step
-between the old and new fused value is faded out over ``switch_blend_s`` so the estimator — and
-so the thrust — never sees a jump.
+the present with the estimated LF velocity). Bumpless, so that the estimator — and so the thrust —
+never sees a jump:
+
+* when the set of references in use changes, the step between the *levels* of the old and the new
+  set (inverse-variance means of each reference's low-passed value: the bias between references,
+  not one sample's noise) is added to the output and faded out over ``switch_blend_s``;
+* a reference back to OK (after a drop-out, freeze, rejection, isolation or disconnection) is fused
+  again only after ``readmit_s`` of good samples, so that its level has settled — unless none of
+  its kind is in use;
+* when references come back after all of a kind were lost, the output starts at the estimator's
+  (dead-reckoned) prediction: the offset is the running mean of prediction − fused value over
+  ``readmit_s``, then faded out over ``switch_blend_s``.
 
 The hub is pure: time is the ``t_s`` argument; no clock, no I/O.
 """
@@ -110,7 +123,9 @@ class HubConfig:
     median_persist_s: float = 2.0
     median_filter_s: float = 5.0
     switch_blend_s: float = 20.0
-    error_rate_alarm: float = 0.2
+    readmit_s: float = 5.0
+    error_rate_alarm: float = 0.2  # share of malformed frames on a transport (transport_health.py)
+    error_rate_window_s: float = 10.0
 
 
 @dataclass
@@ -127,9 +142,12 @@ class _SensorTrack:
     rejecting_since_t_s: float | None = None
     median_fail_since_t_s: float | None = None
     residual_variance: float | None = None  # measured noise variance (variance test) [m²] / [rad²]
+    variance_samples: int = 0  # samples averaged into residual_variance
     previous_residual: tuple[float, float] | None = None
     previous_residual2: tuple[float, float] | None = None
-    filtered: tuple[float, float] | None = None  # low-passed accepted value for the median test
+    filtered: tuple[float, float] | None = None  # low-passed accepted value (median test, bumpless switch)
+    filter_samples: int = 0  # samples in ``filtered`` since it (re)started
+    usable_from_t_s: float = -math.inf  # readmission: not fused before this time
     noisy: bool = False  # variance alarm raised
     isolated_alarm: bool = False
     gst_sigma: float | None = None
@@ -207,7 +225,12 @@ class SensorHub:
         self._heading_set: frozenset[str] = frozenset()
         self._position_offset = [0.0, 0.0]
         self._heading_offset = 0.0
-        self._last_position = [0.0, 0.0]
+        self._position_seen = False  # a reference of the kind has been fused since start
+        self._heading_seen = False
+        self._position_anchor_until_t_s = -math.inf  # return after a loss: offset measured until then
+        self._heading_anchor_until_t_s = -math.inf
+        self._position_anchor_samples = 0
+        self._heading_anchor_samples = 0
         self._last_heading = 0.0
         self._position_lost_since: float | None = None
         self._heading_lost_since: float | None = None
@@ -253,13 +276,17 @@ class SensorHub:
         if out.position_reset:  # no bumpless fade towards a wrong estimate
             self._position_offset = [0.0, 0.0]
             self._position_set = frozenset()
+            self._position_anchor_until_t_s = -math.inf
         if out.heading_reset:
             self._heading_offset = 0.0
             self._heading_set = frozenset()
+            self._heading_anchor_until_t_s = -math.inf
         self._refresh_states(t_s)
         self._median_tests(t_s)
-        pos_new = self._fuse_position(t_s, dt, velocity_n)
-        head_new = self._fuse_heading(t_s, dt)
+        # After a loss the references come back to an estimator that dead-reckoned: its prediction is the
+        # anchor the step is faded from (not after a reset, which is there to trust the references).
+        pos_new = self._fuse_position(t_s, dt, velocity_n, None if out.position_reset else predicted_y_n)
+        head_new = self._fuse_heading(t_s, dt, None if out.heading_reset else predicted_y_n)
         out.measured = (pos_new, pos_new, head_new)
         out.yaw_rate_radps = self._yaw_rate
         self._availability(t_s)
@@ -371,16 +398,26 @@ class SensorHub:
                 d0 = residual[0] - 2.0 * r1[0] + r2[0]
                 d1 = residual[1] - 2.0 * r1[1] + r2[1]
                 own = d0 * d0 / 6.0 if is_heading else (d0 * d0 + d1 * d1) / 12.0
-                alpha = min(1.0, track.nominal_period_s / cfg.variance_time_constant_s)
+                # Exponential average over variance_time_constant_s, started as a running mean (weight
+                # 1/n for the n-th sample until that is below the EWMA's): the first squared residual alone
+                # would be a one-sample χ² estimate that keeps the alarm ringing for a time constant.
+                track.variance_samples += 1
+                alpha = max(min(1.0, track.nominal_period_s / cfg.variance_time_constant_s),
+                            1.0 / track.variance_samples)
                 track.residual_variance = own if track.residual_variance is None else \
                     (1.0 - alpha) * track.residual_variance + alpha * own
         else:
             track.previous_residual = track.previous_residual2 = None
-        # Low-pass the accepted values for the median test, so noise does not flip it on and off.
-        if track.filtered is None or track.last_accepted_t_s is None:
+        # Low-pass the accepted values for the median test (so noise does not flip it on and off) and for
+        # the level of each reference in a bumpless switch. After a gap it restarts as a running mean
+        # (weight 1/n until that is below the low-pass weight): one raw sample is no level.
+        gap = None if track.last_accepted_t_s is None else max(t_s - track.last_accepted_t_s, 0.0)
+        if track.filtered is None or gap is None or gap > cfg.stale_periods * track.nominal_period_s:
             track.filtered = value
+            track.filter_samples = 1
         else:
-            alpha = 1.0 - math.exp(-max(t_s - track.last_accepted_t_s, 0.0) / cfg.median_filter_s)
+            track.filter_samples += 1
+            alpha = max(1.0 - math.exp(-gap / cfg.median_filter_s), 1.0 / track.filter_samples)
             f0, f1 = track.filtered
             track.filtered = (f0 + alpha * _diff(value[0], f0, is_heading), f1 + alpha * (value[1] - f1))
         track.last_accepted_t_s = t_s
@@ -389,16 +426,26 @@ class SensorHub:
         track.detail = ""
 
     def _all_rejecting(self, tracks: list[_SensorTrack], t_s: float) -> bool:
-        """All live references of a kind rejected by the prediction test for long → trust them."""
+        """All live references of a kind rejected by the prediction test for long → trust them.
+
+        Only when *no* reference of the kind had a sample accepted for ``reject_persist_s``: one that
+        agrees with the estimate proves the estimate is not what is wrong (a single gyro 10° off must
+        not re-initialise the estimator on itself). Frozen references do not count as live (their
+        samples are rejected by the freeze test, not the prediction test); a single repeated value —
+        NMEA 2000 headings come in 1e-4 rad steps — is not frozen.
+        """
+        persist = self.config.reject_persist_s
         live = [t for t in tracks if t.last_t_s is not None and not t.disconnected and
                 t_s - t.last_t_s <= self.config.stale_periods * t.nominal_period_s and
-                t.frozen_since_t_s is None]
-        if not live or any(t.rejecting_since_t_s is None or
-                           t_s - t.rejecting_since_t_s < self.config.reject_persist_s for t in live):
+                t.state is not SensorState.FROZEN]
+        if not live or any(t.rejecting_since_t_s is None or t_s - t.rejecting_since_t_s < persist for t in live):
+            return False
+        if any(t.last_accepted_t_s is not None and t_s - t.last_accepted_t_s < persist for t in tracks):
             return False
         for track in live:
             track.rejecting_since_t_s = None
             track.residual_variance = None
+            track.variance_samples = 0
             track.previous_residual = track.previous_residual2 = None
             track.accepted_value = track.value
             track.last_accepted_t_s = track.last_t_s
@@ -428,6 +475,8 @@ class SensorHub:
                 state = SensorState.OK
             previous = track.state
             track.state = state
+            if state is SensorState.OK and previous is not SensorState.OK:
+                self._readmit(track, t_s)
             if state is not previous:  # alarms change only with the state (no per-cycle text building)
                 for alarm_state in (previous, state):
                     if alarm_state in _ALARM_STATES:
@@ -442,22 +491,38 @@ class SensorHub:
 
     def _noisy(self, track: _SensorTrack, state: SensorState) -> bool:
         """Variance alarm: the measured noise exceeds ``variance_alarm_factor`` × both its nominal and the
-        quietest other reference of the same kind.
+        quietest other reference of the same kind (cleared below 2/3 of that factor).
 
         The measured noise also holds what the wave filter could not predict (wave motion in a high
         sea), common to every reference; comparing with the quietest other reference removes it. A
         single reference has nothing to compare with, so it gets no alarm — its weight still follows
         its measured variance.
         """
-        if track.residual_variance is None or state is not SensorState.OK:
+        if not self._variance_settled(track) or state is not SensorState.OK:
             return False
         others = [t.residual_variance for t in self._tracks.values()
-                  if t is not track and t.config.kind is track.config.kind and t.residual_variance is not None
+                  if t is not track and t.config.kind is track.config.kind and self._variance_settled(t)
                   and t.state is SensorState.OK]
         if not others:
             return False
         floor = max(track.config.sigma ** 2, min(others))
-        return track.residual_variance > self.config.variance_alarm_factor ** 2 * floor
+        # hysteresis: raised above factor², cleared below (2/3 · factor)² (4× for the default 3), so a
+        # variance estimate hovering at the limit does not toggle the alarm
+        factor = self.config.variance_alarm_factor * (2.0 / 3.0 if track.noisy else 1.0)
+        return track.residual_variance > factor * factor * floor
+
+    def _readmit(self, track: _SensorTrack, t_s: float) -> None:
+        """A reference back to OK is fused only after ``readmit_s`` of good samples, when others of its
+        kind are in use: its level (low-passed value) must settle before the bumpless switch measures
+        the step to fade. With none in use it is needed at once (the estimator is dead-reckoning)."""
+        in_use = self._position_set if track.config.kind is SensorKind.POSITION else self._heading_set
+        others = in_use - {track.config.name}
+        track.usable_from_t_s = t_s + self.config.readmit_s if others else -math.inf
+
+    def _variance_settled(self, track: _SensorTrack) -> bool:
+        """The measured variance averages at least one ``variance_time_constant_s`` of samples."""
+        return track.residual_variance is not None and \
+            track.variance_samples * track.nominal_period_s >= self.config.variance_time_constant_s
 
     def _healthy(self, tracks: list[_SensorTrack], t_s: float) -> list[_SensorTrack]:
         return [t for t in tracks if t.state in (SensorState.OK, SensorState.ISOLATED) and
@@ -494,6 +559,7 @@ class SensorHub:
                     track.median_fail_since_t_s = None
                     if track.state is SensorState.ISOLATED:
                         track.state = SensorState.OK
+                        self._readmit(track, t_s)
                 isolated = track.state is SensorState.ISOLATED
                 if isolated is not track.isolated_alarm:
                     track.isolated_alarm = isolated
@@ -507,6 +573,7 @@ class SensorHub:
                 track.median_fail_since_t_s = None
                 if track.state is SensorState.ISOLATED:
                     track.state = SensorState.OK
+                    self._readmit(track, t_s)
             if disagree is not self._disagree[kind]:
                 self._disagree[kind] = disagree
                 self.alarms.set(t_s, f"{kind}.disagree", disagree, Severity.ALARM,
@@ -523,8 +590,28 @@ class SensorHub:
             weights.append(1.0 / max(sigma * sigma, 1e-12))
         return weights
 
-    def _fuse_position(self, t_s: float, dt: float, velocity_n: Sequence[float] | None) -> bool:
-        usable = [t for t in self._healthy(self._position, t_s) if t.state is SensorState.OK]
+    def _level(self, names: Iterable[str], heading: bool) -> tuple[float, float] | None:
+        """Inverse-variance weighted mean of the low-passed values of the named references: the level
+        the fused output has with that set, without the sample-to-sample noise. ``(north_m, east_m)``,
+        or ``(psi_rad, 0)`` for headings (means of angle differences to the first)."""
+        # in the configured order, not the frozenset's: its order follows the per-process string hash, and
+        # a sum in another order differs in the last bit — replay would no longer be exact
+        tracks = [t for t in self._tracks.values() if t.config.name in names]
+        values = [t.filtered for t in tracks if t.filtered is not None]
+        if not values:
+            return None
+        weights = self._weights([t for t in tracks if t.filtered is not None])
+        total = sum(weights)
+        if heading:
+            ref = values[0][0]
+            return ref + sum(w * ssa(v[0] - ref) for v, w in zip(values, weights, strict=True)) / total, 0.0
+        return (sum(w * v[0] for v, w in zip(values, weights, strict=True)) / total,
+                sum(w * v[1] for v, w in zip(values, weights, strict=True)) / total)
+
+    def _fuse_position(self, t_s: float, dt: float, velocity_n: Sequence[float] | None,
+                       anchor: Sequence[float] | None) -> bool:
+        usable = [t for t in self._healthy(self._position, t_s)
+                  if t.state is SensorState.OK and t_s >= t.usable_from_t_s]
         for track in self._position:
             track.weight = 0.0
         if not usable:
@@ -543,24 +630,44 @@ class SensorHub:
         east /= total
         names = frozenset(t.config.name for t in usable)
         if names != self._position_set and self._position_set:
-            # Bumpless switch: keep the output continuous and fade the step out.
-            self._position_offset[0] += self._last_position[0] - (north + self._position_offset[0])
-            self._position_offset[1] += self._last_position[1] - (east + self._position_offset[1])
+            # Bumpless switch: the step between the levels (low-passed values) of the old and the new set
+            # — the bias between references — is added and faded out. Not the step between consecutive
+            # outputs: that is mostly one sample's noise, which would then stay as a bias for a blend time.
+            old_level = self._level(self._position_set, heading=False)
+            new_level = self._level(names, heading=False)
+            if old_level is not None and new_level is not None:
+                self._position_offset[0] += old_level[0] - new_level[0]
+                self._position_offset[1] += old_level[1] - new_level[1]
+        elif not self._position_set and anchor is not None and self._position_lost_since is not None \
+                and self._position_seen:
+            # Back after a loss: the output starts at the dead-reckoned prediction and the dead-reckoning
+            # error is faded out, rather than corrected by the wave filter within its gain's second or
+            # two. The error is measured as the running mean of (prediction − fused) over readmit_s —
+            # one sample would leave its noise as a bias for a blend time.
+            self._position_anchor_samples = 0
+            self._position_anchor_until_t_s = t_s + self.config.readmit_s
         self._position_set = names
-        decay = math.exp(-dt / self.config.switch_blend_s) if dt > 0.0 else 1.0
-        self._position_offset[0] *= decay
-        self._position_offset[1] *= decay
+        self._position_seen = True
+        if t_s < self._position_anchor_until_t_s and anchor is not None:
+            if any(t.fresh for t in usable):
+                self._position_anchor_samples += 1
+                weight = 1.0 / self._position_anchor_samples
+                self._position_offset[0] += weight * (anchor[0] - north - self._position_offset[0])
+                self._position_offset[1] += weight * (anchor[1] - east - self._position_offset[1])
+        else:
+            decay = math.exp(-dt / self.config.switch_blend_s) if dt > 0.0 else 1.0
+            self._position_offset[0] *= decay
+            self._position_offset[1] *= decay
         fused_north = north + self._position_offset[0]
         fused_east = east + self._position_offset[1]
-        self._last_position[0] = fused_north
-        self._last_position[1] = fused_east
         self._out.y_n[0] = fused_north
         self._out.y_n[1] = fused_east
         self._out.position_sigma_m = 1.0 / math.sqrt(total)
         return any(t.fresh for t in usable)
 
-    def _fuse_heading(self, t_s: float, dt: float) -> bool:
-        usable = [t for t in self._healthy(self._heading, t_s) if t.state is SensorState.OK]
+    def _fuse_heading(self, t_s: float, dt: float, anchor: Sequence[float] | None) -> bool:
+        usable = [t for t in self._healthy(self._heading, t_s)
+                  if t.state is SensorState.OK and t_s >= t.usable_from_t_s]
         for track in self._heading:
             track.weight = 0.0
         if not usable:
@@ -575,10 +682,23 @@ class SensorHub:
         heading = ref + mean_offset
         names = frozenset(t.config.name for t in usable)
         if names != self._heading_set and self._heading_set:
-            self._heading_offset += ssa(self._last_heading - (heading + self._heading_offset))
+            old_level = self._level(self._heading_set, heading=True)
+            new_level = self._level(names, heading=True)
+            if old_level is not None and new_level is not None:
+                self._heading_offset += ssa(old_level[0] - new_level[0])
+        elif not self._heading_set and anchor is not None and self._heading_lost_since is not None \
+                and self._heading_seen:
+            self._heading_anchor_samples = 0
+            self._heading_anchor_until_t_s = t_s + self.config.readmit_s
         self._heading_set = names
-        decay = math.exp(-dt / self.config.switch_blend_s) if dt > 0.0 else 1.0
-        self._heading_offset *= decay
+        self._heading_seen = True
+        if t_s < self._heading_anchor_until_t_s and anchor is not None:
+            if any(t.fresh for t in usable):
+                self._heading_anchor_samples += 1
+                self._heading_offset += ssa(anchor[2] - heading - self._heading_offset) / self._heading_anchor_samples
+        else:
+            decay = math.exp(-dt / self.config.switch_blend_s) if dt > 0.0 else 1.0
+            self._heading_offset *= decay
         fused = ssa(heading + self._heading_offset)
         self._last_heading = fused
         self._out.y_n[2] = fused

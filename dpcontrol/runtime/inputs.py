@@ -31,6 +31,27 @@ NMEA_POSITION_DEFAULT = ("GGA", "GNS", "GST")
 NMEA_HEADING_DEFAULT = ("HDT", "THS", "ROT")
 MAVLINK_POSITION_MESSAGES = ("GPS_RAW_INT",)
 MAVLINK_HEADING_MESSAGES = ("ATTITUDE",)
+_SYSTEM_SEPARATOR = "#"
+
+
+def link_source(transport: str, system_id: int | None = None) -> str:
+    """The ``LinkStatus.source`` of a link change: the transport, or one MAVLink system on it
+    (``autopilot#2``), whose heartbeat loss concerns only the sensors of that system."""
+    return transport if system_id is None else f"{transport}{_SYSTEM_SEPARATOR}{system_id}"
+
+
+def split_link_source(source: str) -> tuple[str, int | None]:
+    """Inverse of :func:`link_source`: ``(transport, system_id or None)``."""
+    transport, sep, system = source.rpartition(_SYSTEM_SEPARATOR)
+    if sep and system.isdigit():
+        return transport, int(system)
+    return source, None
+
+
+def link_alarm_code(source: str) -> str:
+    """Alarm code of a link: ``transport.<name>.link`` or ``transport.<name>.system<N>.link``."""
+    transport, system_id = split_link_source(source)
+    return f"transport.{transport}.link" if system_id is None else f"transport.{transport}.system{system_id}.link"
 
 
 def message_kind(message: SensorMessage) -> SensorKind | None:
@@ -103,6 +124,15 @@ class SensorRouter:
         self.unrouted += 1
         return None
 
-    def sensors_on(self, transport: str) -> list[str]:
-        """Names of the sensors a transport feeds (all marked disconnected when it is)."""
-        return [route.sensor.name for route in self._by_transport.get(transport, ())]
+    def sensors_on(self, source: str) -> list[str]:
+        """Names of the sensors a link feeds (all marked disconnected when it is).
+
+        ``source`` is a transport name, or one MAVLink system on it (:func:`link_source`): then the
+        sensors filtered on that ``system_id``, and those with no filter (they may come from any
+        system, so the loss of one cannot be ruled out).
+        """
+        transport, system_id = (source, None) if source in self._by_transport else split_link_source(source)
+        routes = self._by_transport.get(transport, ())
+        if system_id is None:
+            return [route.sensor.name for route in routes]
+        return [route.sensor.name for route in routes if route.system_id in (None, system_id)]

@@ -4,7 +4,9 @@ A thruster is taken out of the allocation — and commanded to zero — when its
 not ready, or when the thrust it delivers disagrees with what a healthy drive would deliver for the
 commands it was given (stuck, dead, wrong sign). The expected thrust follows the commands through
 the drive's first-order response and rate limit (``ThrusterSpec.time_constant_s``,
-``thrust_rate_limit_nps``), so ordinary lag is not a fault.
+``thrust_rate_limit_nps``), so ordinary lag is not a fault. The disagreement must exceed
+``mismatch_fraction`` of the drive's rating — or, at low load, half of the expected thrust (at least
+5 % of the rating) — for ``mismatch_persist_s``, both low-passed over 1 s.
 
 A "not ready" thruster is re-admitted after it has reported ready for ``readmit_s``; a mismatch
 failure latches until an operator resets it (``reset(name)``), because a drive that delivered the
@@ -23,6 +25,10 @@ from dpcontrol.models.thrusters import ThrusterSpec
 from dpcontrol.runtime.alarms import AlarmRegistry, Severity
 from dpcontrol.runtime.config import ThrusterMonitorSettings
 
+MISMATCH_FILTER_S = 1.0  # time constant of the low-passed thrust mismatch [s]
+RELATIVE_MISMATCH = 0.5  # share of the expected thrust the delivered one may miss at low load [-]
+RELATIVE_FLOOR = 0.05  # below this share of the rating a drive's thrust is not judged [-]
+
 
 @dataclass(frozen=True)
 class ThrusterFeedback:
@@ -39,6 +45,8 @@ class ThrusterFeedback:
 class _Health:
     spec: ThrusterSpec
     expected_n: float = 0.0
+    error_n: float = 0.0  # |delivered − expected|, low-passed over MISMATCH_FILTER_S [N]
+    limit_n: float = math.inf  # the mismatch limit, low-passed likewise [N] (inf until the first feedback)
     last_feedback: ThrusterFeedback | None = None
     ready_since_t_s: float | None = None
     not_ready: bool = False
@@ -125,10 +133,29 @@ class ThrusterMonitor:
                     if t_s - health.ready_since_t_s >= self.readmit_s:
                         health.not_ready = False
                         health.expected_n = feedback.thrust_n
+                        health.error_n = 0.0
+                        health.limit_n = math.inf
                         health.detail = ""
                 if feedback.ready and not health.failed_mismatch and not health.not_ready:
+                    # The error and the limit are low-passed (the command of a drive in DP fluctuates; a
+                    # dead drive's error dips whenever its command does) and judged with hysteresis: the
+                    # mismatch persists until the filtered error falls below half the limit. The limit is
+                    # mismatch_fraction of the rating, or — when the drive is asked for less — half of
+                    # what it should deliver, floored at RELATIVE_FLOOR of the rating: a drive delivering
+                    # nothing (or pushing the wrong way) at 5–20 % load is a failure too.
                     error = abs(feedback.thrust_n - health.expected_n)
-                    if error > s.mismatch_fraction * spec.max_thrust_n:
+                    limit_now = min(s.mismatch_fraction * spec.max_thrust_n,
+                                    max(RELATIVE_MISMATCH * abs(health.expected_n),
+                                        RELATIVE_FLOOR * spec.max_thrust_n))
+                    if not math.isfinite(health.limit_n):
+                        health.limit_n = limit_now
+                    if dt_s > 0.0:
+                        alpha = -math.expm1(-dt_s / MISMATCH_FILTER_S)
+                        health.error_n += (error - health.error_n) * alpha
+                        health.limit_n += (limit_now - health.limit_n) * alpha
+                    limit = health.limit_n
+                    if health.error_n > limit or (health.mismatch_since_t_s is not None and
+                                                  health.error_n > 0.5 * limit):
                         if health.mismatch_since_t_s is None:
                             health.mismatch_since_t_s = t_s
                         if t_s - health.mismatch_since_t_s >= s.mismatch_persist_s:
@@ -153,6 +180,8 @@ class ThrusterMonitor:
         health = self._health[index]
         health.failed_mismatch = False
         health.mismatch_since_t_s = None
+        health.error_n = 0.0
+        health.limit_n = math.inf
         health.expected_n = health.last_feedback.thrust_n if health.last_feedback else 0.0
         return True
 

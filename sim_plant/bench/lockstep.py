@@ -22,22 +22,29 @@ from typing import Any
 
 import numpy as np
 
+from dpcontrol.runtime.alarms import AlarmEvent
 from dpcontrol.runtime.config import DaemonConfig, SensorRoute, parse_config
-from dpcontrol.runtime.inputs import SensorRouter
+from dpcontrol.runtime.hub import SensorState
+from dpcontrol.runtime.inputs import SensorRouter, link_source
 from dpcontrol.runtime.step import DpController, Mode, StepOutput
 from dpcontrol.runtime.thrusters import ThrusterFeedback
-from interfaces.mavlink.codec import MavlinkDecoder
-from interfaces.messages import Measurement, Rejected
+from dpcontrol.runtime.transport_health import InputHealth
+from interfaces.mavlink.codec import HeartbeatMonitor, MavlinkDecoder, MavlinkEncoder
+from interfaces.messages import LinkHeartbeat, LinkStatus, Measurement, PositionFix, Rejected
 from interfaces.nmea0183 import Nmea0183Decoder
 from interfaces.nmea2000.codec import N2kDecoder
 from interfaces.zenoh.schemas import SetpointRequest
-from sim_plant.encoding import MavlinkSensorEncoder, N2kSensorEncoder, NmeaSensorEncoder
+from sim_plant.encoding import DATE_DAYS_SINCE_1970, MavlinkSensorEncoder, N2kSensorEncoder, NmeaSensorEncoder
+from sim_plant.faults import Fault
 from sim_plant.plant import Plant
+from sim_plant.protocol_faults import mavlink_burst, n2k_burst, nmea0183_burst
 from sim_plant.scenario import Scenario
-from sim_plant.sensors import GnssSpec, SensorSample
+from sim_plant.sensors import GnssSpec, InvalidFix, SensorSample
 from sim_plant.thrusters import ThrusterCommand
 
 N2K_FIRST_ADDRESS = 100
+HEARTBEAT_PERIOD_S = 1.0  # MAVLink-standard HEARTBEAT rate of the emulated autopilots
+STREAM_BURSTS = 5  # random stream of the malformed bursts (sim_plant/emulator.py uses the same)
 
 
 def _vessel_id(name: str) -> str:
@@ -111,7 +118,20 @@ class Columns:
 
 @dataclass
 class RunResult:
-    """What a lockstep run produced."""
+    """What a lockstep run produced.
+
+    Attributes
+    ----------
+    alarms : list of dict
+        The alarms listed at the end (active, and cleared within the registry's ``keep_cleared_s``).
+    alarm_events : list of AlarmEvent
+        Every raise and clear during the run, in order (what the daemon records on its ``alarm`` topic).
+    mode_changes : list of tuple
+        ``(t_s, from, to, reason)`` of every mode change.
+    counters : dict
+        ``decode_rejects`` (all rejected frames), ``unrouted``, ``transports`` (per-transport decoded /
+        malformed / flagged-invalid counts and reasons) and ``protocol_faults`` (what was carried out).
+    """
 
     scenario: Scenario
     config: DaemonConfig
@@ -121,14 +141,38 @@ class RunResult:
     steps: int
     alarms: list[dict[str, Any]] = field(default_factory=list)
     mode_changes: list[tuple[float, str, str, str]] = field(default_factory=list)
-    counters: dict[str, int] = field(default_factory=dict)
+    counters: dict[str, Any] = field(default_factory=dict)
+    alarm_events: list[AlarmEvent] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class _FaultAction:
+    """A protocol fault as the lockstep carries it out (as the emulator does, ``sim_plant/emulator.py``)."""
+
+    t_s: float
+    order: int  # 0: before the samples of the step (unplug, replug, silence), 1: after them (bursts)
+    fault: Fault
+    action: str  # "burst" | "unplug" | "replug" | "silence"
+    index: int  # the fault's index in the scenario (seeds its random stream, as in the emulator)
 
 
 class _Inputs:
-    """The daemon's decoders and router, fed with the plant's encoded bytes (no transport)."""
+    """The daemon's decoders, router and transport health, fed with the plant's encoded bytes (no transport).
+
+    Protocol-level faults of the scenario are carried out here, on the bytes and link states the daemon
+    would see: ``malformed_burst`` feeds :mod:`sim_plant.protocol_faults` items built from the target
+    sensor's latest valid output into its transport's decoder; ``serial_unplug`` silences every sensor
+    on that serial transport and reports the link lost (and back at the fault's end), as the daemon's
+    serial reader does; ``heartbeat_loss`` stops the 1 Hz HEARTBEAT of the target's MAVLink system, and
+    the daemon's own heartbeat monitor (:class:`interfaces.mavlink.codec.HeartbeatMonitor`, the
+    transport's ``heartbeat_timeout_s``) declares that system lost. Every decoded or rejected frame is
+    counted per transport by :class:`~dpcontrol.runtime.transport_health.InputHealth` — the daemon's code.
+    """
 
     def __init__(self, config: DaemonConfig, scenario: Scenario) -> None:
         self.router = SensorRouter(config.routes, config.transports)
+        self.health = InputHealth([t.name for t in config.transports], self.router, config.hub.error_rate_alarm,
+                                  config.hub.error_rate_window_s)
         routes: dict[str, SensorRoute] = {r.sensor.name: r for r in config.routes}
         protocols = {t.name: t.protocol for t in config.transports}
         self.nmea: dict[str, Nmea0183Decoder] = {}
@@ -136,7 +180,19 @@ class _Inputs:
         self.mav: dict[str, MavlinkDecoder] = {}
         self.encoders: dict[str, Any] = {}
         self.transport_of: dict[str, str] = {}
+        self.protocol_of: dict[str, str] = {}
+        self.kind_of: dict[str, str] = {}
+        self.system_of: dict[str, int] = {}
+        self.last_valid: dict[str, list[Any]] = {}
         self.rejected = 0
+        self.unplugged: set[str] = set()
+        self.links: list[LinkStatus] = []
+        self.applied: list[dict[str, Any]] = []
+        self._mav_encoders: dict[tuple[str, int], MavlinkEncoder] = {}
+        self._silent_until: dict[tuple[str, int], float] = {}
+        self._monitors: dict[str, HeartbeatMonitor] = {}
+        self._next_heartbeat_s = 0.0
+        self._seed = scenario.seed
         address = N2K_FIRST_ADDRESS
         for spec in scenario.sensors:
             route = routes.get(spec.name)
@@ -147,6 +203,8 @@ class _Inputs:
                 raise ValueError(f"sensor {spec.name}: the scenario sends {spec.protocol}, "
                                  f"the controller expects {protocol}")
             self.transport_of[spec.name] = route.transport
+            self.protocol_of[spec.name] = protocol
+            self.kind_of[spec.name] = "position" if isinstance(spec, GnssSpec) else "heading"
             if protocol == "nmea0183":
                 self.nmea.setdefault(route.transport, Nmea0183Decoder())
                 self.encoders[spec.name] = NmeaSensorEncoder(spec.kind, route.talker, route.sentences)
@@ -157,47 +215,200 @@ class _Inputs:
                 self.encoders[spec.name] = N2kSensorEncoder(source)
             else:
                 self.mav.setdefault(route.transport, MavlinkDecoder())
-                self.encoders[spec.name] = MavlinkSensorEncoder(route.system_id or 1)
+                system_id = route.system_id or 1
+                self.system_of[spec.name] = system_id
+                key = (route.transport, system_id)
+                if key not in self._mav_encoders:  # one autopilot per system id: its sensors share the sequence
+                    self._mav_encoders[key] = MavlinkEncoder(system_id, 1)
+                self.encoders[spec.name] = MavlinkSensorEncoder(encoder=self._mav_encoders[key])
+        for transport in {route.transport for route in config.routes if protocols[route.transport] == "mavlink"}:
+            timeout = float(next(t.settings for t in config.transports if t.name == transport)["heartbeat_timeout_s"])
+            self._monitors[transport] = HeartbeatMonitor(timeout, start_t_s=0.0)
+        self.actions = self._fault_actions(scenario.faults)
+
+    # ---------------------------------------------------------------- protocol faults
+    def _fault_actions(self, faults: tuple[Fault, ...]) -> list[_FaultAction]:
+        actions = []
+        for index, fault in enumerate(faults):
+            if fault.kind == "malformed_burst":
+                actions.append(_FaultAction(fault.t_s, 1, fault, "burst", index))
+            elif fault.kind == "serial_unplug":
+                actions.append(_FaultAction(fault.t_s, 0, fault, "unplug", index))
+                if math.isfinite(fault.end_s):
+                    actions.append(_FaultAction(fault.end_s, 0, fault, "replug", index))
+            elif fault.kind == "heartbeat_loss":
+                actions.append(_FaultAction(fault.t_s, 0, fault, "silence", index))
+        actions.sort(key=lambda a: (a.t_s, a.order))
+        return actions
+
+    def apply_faults(self, t: float, order: int) -> None:
+        """Carry out the protocol-fault actions of ``order`` due by ``t``."""
+        actions = self.actions
+        i = 0
+        while i < len(actions) and actions[i].t_s <= t + 1e-9:
+            action = actions[i]
+            if action.order != order:
+                i += 1
+                continue
+            del actions[i]
+            self._apply(action, t)
+
+    def _apply(self, action: _FaultAction, t: float) -> None:
+        fault = action.fault
+        sensor = fault.target
+        transport = self.transport_of.get(sensor)
+        entry: dict[str, Any] = {"t_s": t, "kind": fault.kind, "action": action.action, "target": sensor}
+        if transport is None:
+            entry["skipped"] = f"{sensor} is not routed to the controller"
+        elif action.action == "burst":
+            rng = np.random.default_rng([self._seed, STREAM_BURSTS, action.index])
+            entry["items"] = self._burst(sensor, transport, t, fault.count, rng)
+        elif action.action == "unplug":
+            if transport not in self.unplugged:
+                self.unplugged.add(transport)
+                self.links.append(LinkStatus(t, transport, False, "serial port closed (device unplugged)"))
+        elif action.action == "replug":
+            if transport in self.unplugged:
+                self.unplugged.discard(transport)
+                self.links.append(LinkStatus(t, transport, True, "serial port reopened"))
+        else:  # silence: the target's autopilot sends no HEARTBEAT until the fault ends
+            key = (transport, self.system_of[sensor])
+            self._silent_until[key] = max(fault.end_s, self._silent_until.get(key, fault.end_s))
+        self.applied.append(entry)
+
+    def _burst(self, sensor: str, transport: str, t: float, count: int, rng: np.random.Generator) -> int:
+        """Malformed items built from the sensor's latest valid output, through its transport's decoder."""
+        last = self.last_valid.get(sensor)
+        if not last or transport in self.unplugged:
+            return 0
+        protocol = self.protocol_of[sensor]
+        encoder = self.encoders[sensor]
+        if protocol == "nmea0183":
+            decoder = self.nmea[transport]
+            for line in nmea0183_burst(encoder.encode(last), count, rng):
+                for frame in decoder.feed_frames(line):
+                    self._count_nmea(transport, t, frame, None)
+            return count
+        if protocol == "nmea2000":
+            fix = next((m for m in last if isinstance(m, PositionFix)), None)
+            fast = [] if fix is None else [encoder.encoder.gnss_position(fix, date_days=DATE_DAYS_SINCE_1970)
+                                           for _ in range((count + 2) // 3)]
+            decoder = self.n2k[transport]
+            for frames in n2k_burst(self.kind_of[sensor], encoder.source_address, count, rng, fast):
+                for can_id, data in frames:
+                    for result in decoder.decode_frame(can_id, data, t):
+                        self._count_n2k(transport, t, result, None)
+            return count
+        decoder = self.mav[transport]
+        for packet in mavlink_burst(encoder.encode(t, last), count, rng):
+            for result in decoder.decode_datagram(packet):
+                self._count_mav(transport, t, result, None)
+        return count
+
+    def heartbeats(self, t: float) -> None:
+        """The autopilots' 1 Hz HEARTBEAT (unless silenced) through the decoder into the heartbeat monitor;
+        link changes go to :attr:`links`."""
+        if not self._monitors:
+            return
+        if t + 1e-9 >= self._next_heartbeat_s:
+            self._next_heartbeat_s += HEARTBEAT_PERIOD_S
+            for (transport, system_id), encoder in self._mav_encoders.items():
+                if transport in self.unplugged or t < self._silent_until.get((transport, system_id), -math.inf):
+                    continue
+                for result in self.mav[transport].decode_datagram(encoder.heartbeat()):
+                    self._count_mav(transport, t, result, None)
+        for transport, monitor in self._monitors.items():
+            for change in monitor.check(t):
+                system_id = None if change.key is None else change.key[0]
+                self.links.append(LinkStatus(change.t_s, link_source(transport, system_id), change.connected,
+                                             change.detail))
+
+    def expire(self, t: float) -> None:
+        """Fast packets left incomplete for too long become rejects (as the daemon's CAN reader does)."""
+        for transport, decoder in self.n2k.items():
+            for result in decoder.expire(t):
+                self._count_n2k(transport, t, result, None)
+
+    # ---------------------------------------------------------------- decoding
+    def _count_nmea(self, transport: str, t: float, frame: Any, out: list[Measurement] | None) -> None:
+        if frame.rejected is not None:
+            self.rejected += 1
+            self.health.count(transport, t, frame.rejected.reason)
+            return
+        self.health.count(transport, t)
+        if out is not None:
+            for message in frame.messages:
+                name = self.router.nmea0183(transport, frame.sentence, message)
+                if name is not None:
+                    out.append(Measurement(t, name, message))
+
+    def _count_n2k(self, transport: str, t: float, result: Any, out: list[Measurement] | None) -> None:
+        if isinstance(result.item, Rejected):
+            self.rejected += 1
+            self.health.count(transport, t, result.item.reason)
+            return
+        self.health.count(transport, t)
+        if out is not None:
+            name = self.router.nmea2000(transport, result.source_address, result.item)
+            if name is not None:
+                out.append(Measurement(t, name, result.item))
+
+    def _count_mav(self, transport: str, t: float, result: Any, out: list[Measurement] | None) -> None:
+        item = result.item
+        if isinstance(item, Rejected):
+            self.rejected += 1
+            self.health.count(transport, t, item.reason)
+            return
+        self.health.count(transport, t)
+        if isinstance(item, LinkHeartbeat):
+            monitor = self._monitors.get(transport)
+            if monitor is not None:
+                change = monitor.beat((item.system_id, item.component_id), t)
+                if change is not None:
+                    self.links.append(LinkStatus(t, link_source(transport, item.system_id), True, change.detail))
+            return
+        if out is not None:
+            name = self.router.mavlink(transport, result.system_id, result.msg_name, item)
+            if name is not None:
+                out.append(Measurement(t, name, item))
 
     def measurements(self, samples: list[SensorSample], out: list[Measurement]) -> None:
-        """Encode each sample as its sensor would, decode it as the daemon does, route it."""
-        router = self.router
-        for sample in samples:
-            transport = self.transport_of.get(sample.sensor)
-            if transport is None:
-                continue
-            encoder = self.encoders[sample.sensor]
-            t = sample.t_s
-            if sample.protocol == "nmea0183":
-                decoder = self.nmea[transport]
-                for sentence in encoder.encode((sample.message,)):
-                    for frame in decoder.feed_frames(sentence):
-                        if frame.rejected is not None:
-                            self.rejected += 1
-                        for message in frame.messages:
-                            name = router.nmea0183(transport, frame.sentence, message)
-                            if name is not None:
-                                out.append(Measurement(t, name, message))
-            elif sample.protocol == "nmea2000":
-                decoder = self.n2k[transport]
-                for can_id, data in encoder.encode((sample.message,)):
-                    for result in decoder.decode_frame(can_id, data, t):
-                        if isinstance(result.item, Rejected):
-                            self.rejected += 1
-                            continue
-                        name = router.nmea2000(transport, result.source_address, result.item)
-                        if name is not None:
-                            out.append(Measurement(t, name, result.item))
-            else:
-                decoder = self.mav[transport]
-                for packet in encoder.encode(t, (sample.message,)):
-                    for result in decoder.decode_datagram(packet):
-                        if isinstance(result.item, Rejected):
-                            self.rejected += 1
-                            continue
-                        name = router.mavlink(transport, result.system_id, result.msg_name, result.item)
-                        if name is not None:
-                            out.append(Measurement(t, name, result.item))
+        """Encode each sample group (a sensor's messages of one instant) as its sensor would, decode it as
+        the daemon does, route it."""
+        n = len(samples)
+        i = 0
+        while i < n:
+            first = samples[i]
+            j = i + 1
+            while j < n and samples[j].sensor == first.sensor and samples[j].t_s == first.t_s:
+                j += 1
+            self._group(first.sensor, first.t_s, [s.message for s in samples[i:j]], out)
+            i = j
+
+    def _group(self, sensor: str, t: float, messages: list[Any], out: list[Measurement]) -> None:
+        transport = self.transport_of.get(sensor)
+        if transport is None or transport in self.unplugged:  # an unplugged port delivers nothing
+            return
+        valid = [m for m in messages if not isinstance(m, InvalidFix)]
+        if valid and len(valid) == len(messages):
+            self.last_valid[sensor] = valid  # what a malformed burst is built from
+        encoder = self.encoders[sensor]
+        protocol = self.protocol_of[sensor]
+        if protocol == "nmea0183":
+            decoder = self.nmea[transport]
+            for sentence in encoder.encode(messages):
+                for frame in decoder.feed_frames(sentence):
+                    self._count_nmea(transport, t, frame, out)
+        elif protocol == "nmea2000":
+            decoder = self.n2k[transport]
+            for can_id, data in encoder.encode(messages):
+                for result in decoder.decode_frame(can_id, data, t):
+                    self._count_n2k(transport, t, result, out)
+        else:
+            decoder = self.mav[transport]
+            for packet in encoder.encode(t, messages):
+                for result in decoder.decode_datagram(packet):
+                    self._count_mav(transport, t, result, out)
 
 
 TRUTH_COLUMNS = ["t_s", "north_m", "east_m", "heading_rad", "north_total_m", "east_total_m", "heading_total_rad",
@@ -225,6 +436,215 @@ def column_names(n_models: int, thruster_names: list[str]) -> list[str]:
 
 
 MODE_CODES = {Mode.STANDBY: 0.0, Mode.AUTO_HEADING: 1.0, Mode.AUTO_POSITION: 2.0}
+SENSOR_STATE_CODES: dict[SensorState, int] = {state: i for i, state in enumerate(SensorState)}
+
+
+class SensorProbe:
+    """Per-step health of every hub reference and thruster availability, kept in preallocated arrays (an
+    ``observer`` of :meth:`LockstepSimulation.run`).
+
+    Attributes (each of shape ``(steps, n_sensors)``, columns in :attr:`names` order)
+    ----------
+    state : ndarray of int
+        :data:`SENSOR_STATE_CODES` of the sensor's state after the step.
+    weight : ndarray of float
+        Its weight in the fusion [-].
+    accepted : ndarray of int
+        Samples it has had accepted so far (a sample that passes every test).
+    rejected : ndarray of int
+        Samples rejected so far (frozen, prediction test).
+    t_s : ndarray, shape (steps,)
+    position_available, heading_available : ndarray of bool, shape (steps,)
+    thruster_available : ndarray of bool, shape (steps, n_thrusters)
+        The thruster monitor's availability mask after the step.
+
+    Parameters
+    ----------
+    simulation : LockstepSimulation
+    duration_s : float, optional
+        Run length (default: the scenario's).
+    """
+
+    def __init__(self, simulation: LockstepSimulation, duration_s: float | None = None) -> None:
+        self._hub = simulation.controller.hub
+        self._tracks = list(self._hub._tracks.values())
+        self.names = [track.config.name for track in self._tracks]
+        duration = simulation.scenario.duration_s if duration_s is None else duration_s
+        steps = math.floor(duration / simulation.config.sample_time_s + 1e-9) + 1
+        n = len(self._tracks)
+        self.t_s = np.full(steps, np.nan)
+        self.state = np.zeros((steps, n), dtype=np.int8)
+        self.weight = np.zeros((steps, n))
+        self.accepted = np.zeros((steps, n), dtype=np.int64)
+        self.rejected = np.zeros((steps, n), dtype=np.int64)
+        self.position_available = np.zeros(steps, dtype=bool)
+        self.heading_available = np.zeros(steps, dtype=bool)
+        self._monitor = simulation.controller.monitor
+        self.thruster_available = np.zeros((steps, len(simulation.thruster_names)), dtype=bool)
+        self.rows = 0
+
+    def __call__(self, t_s: float, out: StepOutput) -> None:
+        k = self.rows
+        if k >= self.t_s.size:
+            return
+        self.t_s[k] = t_s
+        for j, track in enumerate(self._tracks):
+            self.state[k, j] = SENSOR_STATE_CODES[track.state]
+            self.weight[k, j] = track.weight
+            self.accepted[k, j] = track.samples - track.rejected_samples
+            self.rejected[k, j] = track.rejected_samples
+        hub = out.hub
+        if hub is not None:
+            self.position_available[k] = hub.position_available
+            self.heading_available[k] = hub.heading_available
+        self.thruster_available[k] = self._monitor.available
+        self.rows = k + 1
+
+    def column(self, name: str) -> int:
+        return self.names.index(name)
+
+    def first_time(self, name: str, state: SensorState, after_s: float = 0.0) -> float | None:
+        """First step time ≥ ``after_s`` at which sensor ``name`` is in ``state`` (None: never)."""
+        t = self.t_s[: self.rows]
+        hits = np.flatnonzero((t >= after_s - 1e-9) & (self.state[: self.rows, self.column(name)]
+                                                         == SENSOR_STATE_CODES[state]))
+        return None if hits.size == 0 else float(t[hits[0]])
+
+
+class StatusProbe:
+    """The ``dp/<vessel>/status`` payload the daemon would publish, built every ``every_s`` of a lockstep run
+    with the daemon's own builder and parsed back through the status schema (an ``observer`` of
+    :meth:`LockstepSimulation.run`).
+
+    Attributes
+    ----------
+    samples : list of (float, dict)
+        ``(t_s, parsed payload)``; a payload the schema rejects is kept as the :class:`Rejected`.
+    """
+
+    def __init__(self, simulation: LockstepSimulation, every_s: float = 1.0) -> None:
+        from dpcontrol.runtime.daemon import status_payload  # noqa: PLC0415 (zenoh only when asked for)
+        from interfaces.zenoh.schemas import parse_message  # noqa: PLC0415
+
+        self._build = status_payload
+        self._parse = parse_message
+        self._simulation = simulation
+        self._every = max(1, round(every_s / simulation.config.sample_time_s))
+        self._k = 0
+        self.samples: list[tuple[float, Any]] = []
+
+    def __call__(self, t_s: float, out: StepOutput) -> None:
+        del out
+        k = self._k
+        self._k += 1
+        if k % self._every:
+            return
+        controller = self._simulation.controller
+        payload = self._build(controller, controller.alarms, t_s, k)
+        self.samples.append((t_s, self._parse("status", payload)))
+
+    def active_codes(self, t_s: float) -> set[str]:
+        """Alarm codes active in the first status published at or after ``t_s``."""
+        for t, status in self.samples:
+            if t >= t_s - 1e-9 and isinstance(status, dict):
+                return {a["code"] for a in status["alarms"] if a["active"]}
+        return set()
+
+    def sensor_state(self, t_s: float, name: str) -> str | None:
+        """A sensor's state in the first status published at or after ``t_s``."""
+        for t, status in self.samples:
+            if t >= t_s - 1e-9 and isinstance(status, dict):
+                return next((s["state"] for s in status["sensors"] if s["name"] == name), None)
+        return None
+
+
+@dataclass
+class ProbedRun:
+    """A lockstep run with its per-step sensor health (:class:`SensorProbe`) and the status it published
+    (:class:`StatusProbe`): what the fault-injection tests and the soak benchmark judge a run by."""
+
+    simulation: LockstepSimulation
+    result: RunResult
+    sensors: SensorProbe
+    status: StatusProbe
+
+    @staticmethod
+    def run(simulation: LockstepSimulation, *, status_every_s: float = 0.5,
+            duration_s: float | None = None) -> ProbedRun:
+        sensors = SensorProbe(simulation, duration_s)
+        status = StatusProbe(simulation, status_every_s)
+        result = simulation.run(duration_s=duration_s, observer=observers(sensors, status))
+        return ProbedRun(simulation, result, sensors, status)
+
+    def col(self, name: str) -> np.ndarray:
+        """A time-series column (one value per control step)."""
+        c = self.result.columns
+        return c.data[: c.rows, c.index(name)]
+
+    @property
+    def t_s(self) -> np.ndarray:
+        return self.col("t_s")
+
+    def between(self, t0_s: float, t1_s: float) -> np.ndarray:
+        """Boolean mask of the steps with ``t0_s ≤ t < t1_s``."""
+        t = self.t_s
+        return (t >= t0_s - 1e-9) & (t < t1_s - 1e-9)
+
+    def position_error_m(self) -> np.ndarray:
+        """Distance of the true LF position from the reference [m] (NaN where no reference)."""
+        return np.hypot(self.col("north_m") - self.col("ref_north_m"), self.col("east_m") - self.col("ref_east_m"))
+
+    def heading_error_rad(self) -> np.ndarray:
+        """|true LF heading − reference heading| wrapped [rad] (NaN where no reference)."""
+        error = self.col("heading_rad") - self.col("ref_heading_rad")
+        return np.abs(np.angle(np.exp(1j * error)))
+
+    def thrust_n(self) -> np.ndarray:
+        """Commanded thrust per step, shape (steps, thrusters)."""
+        names = self.simulation.thruster_names
+        c = self.result.columns
+        i = c.index(f"thrust_{names[0]}_n")
+        return c.data[: c.rows, i:i + len(names)]
+
+    def tau_b(self) -> np.ndarray:
+        """Demanded generalized force per step, shape (steps, 3)."""
+        c = self.result.columns
+        i = c.index("tau_x_n")
+        return c.data[: c.rows, i:i + 3]
+
+    def thrust_rate_excess_n(self) -> float:
+        """Largest per-step thrust command change beyond the drive's rate limit ``Ṫmax·dt`` [N], over every
+        step and thruster — except a thruster taken out or put back in that step (a failed drive is
+        commanded zero at once)."""
+        thrust = self.thrust_n()
+        if thrust.shape[0] < 2:
+            return 0.0
+        dt = self.simulation.config.sample_time_s
+        rates = np.array([t.thrust_rate_limit_nps for t in self.simulation.config.vessel.thrusters])
+        available = self.sensors.thruster_available[: thrust.shape[0]]
+        steady = available[1:] & available[:-1]
+        excess = np.abs(np.diff(thrust, axis=0)) - rates * dt
+        excess[~steady] = 0.0
+        return float(np.max(excess))
+
+    def force_step_n(self, t0_s: float, t1_s: float) -> np.ndarray:
+        """Largest per-step change of the demanded force in ``[t0_s, t1_s)``, per DOF [N, N, N·m]."""
+        mask = self.between(t0_s, t1_s)
+        tau = self.tau_b()
+        steps = np.abs(np.diff(tau, axis=0))[mask[1:] & mask[:-1]]
+        return steps.max(axis=0) if steps.size else np.zeros(3)
+
+    def events(self, code: str) -> list[tuple[float, bool]]:
+        """``(t_s, raised)`` of every transition of alarm ``code``."""
+        return [(e.t_s, e.raised) for e in self.result.alarm_events if e.code == code]
+
+
+def observers(*callbacks: Callable[[float, StepOutput], None]) -> Callable[[float, StepOutput], None]:
+    """One ``observer`` calling each of ``callbacks`` in turn."""
+    def observe(t_s: float, out: StepOutput) -> None:
+        for callback in callbacks:
+            callback(t_s, out)
+    return observe
 
 
 class LockstepSimulation:
@@ -252,24 +672,43 @@ class LockstepSimulation:
         self.omegas = tuple(wave_filter.omegas_rad_s) if wave_filter is not None and \
             self.config.estimator.kind == "mmae" else ()
 
-    def run(self, progress: Callable[[float, float], None] | None = None, duration_s: float | None = None) -> RunResult:
-        """Run to the scenario's end (or ``duration_s``); returns the preallocated time series."""
+    def run(self, progress: Callable[[float, float], None] | None = None, duration_s: float | None = None, *,
+            observer: Callable[[float, StepOutput], None] | None = None, timeseries: bool = True) -> RunResult:
+        """Run to the scenario's end (or ``duration_s``); returns the preallocated time series.
+
+        Parameters
+        ----------
+        progress : callable, optional
+            ``progress(t_s, duration_s)`` about 200 times per run.
+        duration_s : float, optional
+            Simulated time [s] (default: the scenario's).
+        observer : callable, optional
+            ``observer(t_s, out)`` after every control step (the step's output is reused: copy what you
+            keep); :attr:`controller` and :attr:`inputs` may be inspected from it.
+        timeseries : bool
+            Keep one row per step (default). False keeps a single reused row (long runs: constant memory);
+            the result then has no rows.
+        """
         scenario = self.scenario
         dt = self.config.sample_time_s
         duration = scenario.duration_s if duration_s is None else duration_s
         steps = math.floor(duration / dt + 1e-9) + 1
         names = column_names(len(self.omegas), self.thruster_names)
-        data = np.full((steps, len(names)), np.nan)
+        data = np.full((steps if timeseries else 1, len(names)), np.nan)
         columns = Columns(names, data)
         col = {name: i for i, name in enumerate(names)}
         plant = self.plant
         controller = self.controller
+        inputs = self.inputs
+        alarms = controller.alarms
+        hub = controller.hub
         setpoints = list(scenario.setpoints)
         next_setpoint = 0
         measurements: list[Measurement] = []
         feedback: list[ThrusterFeedback] = []
         commands = {name: ThrusterCommand(0.0, None, False) for name in self.thruster_names}
         mode_changes: list[tuple[float, str, str, str]] = []
+        alarm_events: list[AlarmEvent] = []
         n_models = len(self.omegas)
         n_thr = len(self.thruster_names)
         i_weights = col["weight_0"] if n_models else 0
@@ -282,7 +721,16 @@ class LockstepSimulation:
             t = k * dt
             plant.advance(t)
             measurements.clear()
-            self.inputs.measurements(plant.sensor_samples(t), measurements)
+            inputs.links.clear()
+            if inputs.actions:
+                inputs.apply_faults(t, 0)  # unplug / replug / heartbeat silence before the samples
+            inputs.heartbeats(t)
+            inputs.measurements(plant.sensor_samples(t), measurements)
+            if inputs.actions:
+                inputs.apply_faults(t, 1)  # malformed bursts after them
+            if inputs.n2k:
+                inputs.expire(t)
+            inputs.health.apply_links(t, inputs.links, hub, alarms)
             feedback.clear()
             for item in plant.feedback():
                 feedback.append(ThrusterFeedback(item.name, item.thrust_n, item.azimuth_rad, item.ready, t))
@@ -293,22 +741,29 @@ class LockstepSimulation:
                                                 heading_rad=sp.heading_rad))
                 next_setpoint += 1
             out = controller.step(t, measurements, feedback, requests)
+            inputs.health.update_alarms(t, alarms)
+            alarm_events.extend(alarms.drain_events())
             for change in out.mode_changes:
                 mode_changes.append((t, *change))
             for i, name in enumerate(self.thruster_names):
                 commands[name] = ThrusterCommand(float(out.thrust_n[i]), float(out.azimuth_rad[i]),
                                                  bool(out.enabled[i]))
             plant.command(t, commands)
-            self._record(data[k], col, truth_cols, out, (i_weights, n_models, i_thrust, i_azimuth, n_thr))
+            self._record(data[k if timeseries else 0], col, truth_cols, out,
+                         (i_weights, n_models, i_thrust, i_azimuth, n_thr))
+            if observer is not None:
+                observer(t, out)
             if progress is not None and k % report_every == 0:
                 progress(t, duration)
         wall = time.perf_counter() - wall0
-        columns.rows = steps
+        columns.rows = steps if timeseries else 0
         if progress is not None:
             progress(duration, duration)
-        alarms = [a.as_dict() for a in controller.alarms.listed(steps * dt)]
-        counters = {"decode_rejects": self.inputs.rejected, "unrouted": self.inputs.router.unrouted}
-        return RunResult(scenario, self.config, columns, self.omegas, wall, steps, alarms, mode_changes, counters)
+        listed = [a.as_dict() for a in alarms.listed(steps * dt)]
+        counters = {"decode_rejects": inputs.rejected, "unrouted": inputs.router.unrouted,
+                    "transports": inputs.health.counters(), "protocol_faults": list(inputs.applied)}
+        return RunResult(scenario, self.config, columns, self.omegas, wall, steps, listed, mode_changes, counters,
+                         alarm_events)
 
     def _record(self, row: np.ndarray, col: dict[str, int], truth_cols: list[int], out: StepOutput,
                 blocks: tuple[int, int, int, int, int]) -> None:

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -20,7 +22,11 @@ import numpy as np
 from scipy.signal import welch
 
 from dpcontrol.models.frames import ssa_array
+from dpcontrol.runtime.alarms import AlarmEvent
+from dpcontrol.runtime.config import DaemonConfig
+from dpcontrol.runtime.transport_health import MIN_BAD_FOR_ALARM
 from sim_plant.bench.lockstep import Columns, RunResult
+from sim_plant.faults import Fault
 
 PLOT_POINTS = 20000
 
@@ -112,6 +118,12 @@ def summarise(result: RunResult) -> dict[str, Any]:
         "mode_changes": [{"t_s": round(m[0], 3), "from": m[1], "to": m[2], "reason": m[3]}
                          for m in result.mode_changes],
         "alarms": result.alarms,
+        "alarm_events": [{"t_s": round(e.t_s, 3), "code": e.code, "raised": e.raised,
+                          "severity": e.severity.name.lower(), "text": e.text} for e in result.alarm_events],
+        "fault_detections": [{"t_s": d.fault.t_s, "kind": d.fault.kind, "target": d.fault.target,
+                              "alarms": list(d.codes), "bound_s": _round(d.bound_s, 3),
+                              "detected_after_s": _round(d.detected_s, 3), "alarm": d.code}
+                             for d in fault_detections(result)],
         "counters": result.counters,
     }
     metrics: dict[str, Any] = {}
@@ -373,3 +385,165 @@ def _save(fig: Any, path: Path) -> Path:
 
     plt.close(fig)
     return path
+
+
+# ------------------------------------------------------------------------------------------------
+# Fault injections: which alarm proves each one was detected, and when it was due (issue 8)
+# ------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class FaultDetection:
+    """How one injected fault was detected.
+
+    Attributes
+    ----------
+    fault : Fault
+    codes : tuple of str
+        Alarm codes any of which proves the detection.
+    bound_s : float or None
+        Largest delay from the fault's start to the alarm allowed by the configuration [s] (None: the
+        kind has no alarm of its own in this configuration, e.g. noise on the only reference).
+    detected_s : float or None
+        Delay to the first raise of one of ``codes`` at or after the start [s] (None: never).
+    code : str or None
+        The code that was raised first.
+    """
+
+    fault: Fault
+    codes: tuple[str, ...]
+    bound_s: float | None
+    detected_s: float | None
+    code: str | None
+
+    @property
+    def within_bound(self) -> bool:
+        return self.detected_s is not None and self.bound_s is not None and self.detected_s <= self.bound_s + 1e-6
+
+
+def expected_detection(fault: Fault, config: DaemonConfig) -> tuple[tuple[str, ...], float | None]:
+    """The alarm codes that prove ``fault`` was detected, and the configured bound on the delay [s].
+
+    Bounds (``dt`` the control period, ``T`` the target sensor's nominal period): freeze
+    ``freeze_window_s + T + dt``; drop-out and invalid data ``stale_periods·T + dt``; a jump or a gyro
+    offset beyond the prediction limit ``reject_persist_s + T + dt`` (the sample itself is rejected at
+    once; the alarm comes when the rejection persists, or the estimator reset when every reference of
+    the kind jumped; none for a jump shorter than ``reject_persist_s``, whose samples are rejected
+    without an alarm); a drift ``limit / rate + median_filter_s + median_persist_s + 5 s`` with the median
+    limit (≥ 3 references: isolation; 2: disagreement) or the prediction limit (alone); noise
+    ``3 × variance_time_constant_s`` (≥ 2 references); a tripped drive ``feedback_timeout_s``; a thrust
+    mismatch ``mismatch_persist_s + 2 s``; a burst ``dt + 1 s`` (none below ``MIN_BAD_FOR_ALARM`` items;
+    NMEA 2000 fast packets time out after 0.75 s); an unplugged port ``dt``; a heartbeat loss
+    ``heartbeat_timeout_s + 1 s + dt``.
+    """
+    hub = config.hub
+    dt = config.sample_time_s
+    target = fault.target
+    routes = {r.sensor.name: r for r in config.routes}
+    kind = fault.kind
+    monitor = config.thruster_monitor
+    if kind.startswith("thruster_"):
+        code = (f"thruster.{target}.unavailable",)
+        if kind == "thruster_not_ready":
+            return code, monitor.feedback_timeout_s
+        return code, monitor.mismatch_persist_s + 2.0
+    route = routes.get(target)
+    if route is None:
+        return (), None
+    period = 1.0 / route.sensor.nominal_rate_hz
+    heading = route.sensor.kind.value == "heading"
+    same_kind = [r for r in config.routes if r.sensor.kind is route.sensor.kind]
+    n_refs = len(same_kind)
+    transport = route.transport
+    if kind in ("gnss_freeze", "gyro_freeze"):
+        return (f"sensor.{target}.frozen",), hub.freeze_window_s + period + dt
+    if kind in ("gnss_dropout", "gyro_dropout", "gnss_invalid", "gyro_invalid"):
+        return (f"sensor.{target}.stale",), hub.stale_periods * period + dt
+    if kind in ("gnss_jump", "gyro_offset"):
+        limit = hub.heading_jump_min_rad if heading else hub.jump_min_m
+        size = abs(fault.offset_rad) if heading else fault.offset_m
+        if size <= limit:
+            median = hub.median_heading_limit_rad if heading else hub.median_limit_m
+            if size <= median or n_refs < 2:
+                return (), None
+            codes = (f"sensor.{target}.isolated",) if n_refs >= 3 else (f"{route.sensor.kind.value}.disagree",)
+            return codes, hub.median_filter_s + hub.median_persist_s + 5.0
+        if fault.end_s - fault.t_s < hub.reject_persist_s:
+            return (), None  # each sample is rejected at once; too short to be marked (or to reset)
+        return (f"sensor.{target}.rejected", "estimator.reset"), hub.reject_persist_s + period + dt
+    if kind in ("gnss_drift", "gyro_drift"):
+        rate = abs(fault.rate_radps) if heading else fault.rate_mps
+        if rate <= 0.0:
+            return (), None
+        if n_refs >= 3:
+            codes: tuple[str, ...] = (f"sensor.{target}.isolated", f"sensor.{target}.rejected")
+            limit = hub.median_heading_limit_rad if heading else hub.median_limit_m
+        elif n_refs == 2:
+            codes = (f"{route.sensor.kind.value}.disagree", f"sensor.{target}.rejected")
+            limit = hub.median_heading_limit_rad if heading else hub.median_limit_m
+        else:
+            codes = (f"sensor.{target}.rejected", "estimator.reset")
+            limit = hub.heading_jump_min_rad if heading else hub.jump_min_m
+        return codes, limit / rate + hub.median_filter_s + hub.median_persist_s + 5.0
+    if kind == "gnss_noise":
+        if n_refs < 2 or fault.factor <= hub.variance_alarm_factor:
+            return (), None
+        return (f"sensor.{target}.noisy",), 3.0 * hub.variance_time_constant_s
+    if kind == "malformed_burst":
+        if fault.count < MIN_BAD_FOR_ALARM:
+            return (), None  # rejected and counted, below the alarm's minimum of bad frames
+        return (f"transport.{transport}.error_rate",), dt + 1.0
+    if kind == "serial_unplug":
+        return (f"transport.{transport}.link", f"sensor.{target}.disconnected"), dt
+    if kind == "heartbeat_loss":
+        settings = next(t.settings for t in config.transports if t.name == transport)
+        system = route.system_id or 1
+        return (f"transport.{transport}.system{system}.link",), float(settings["heartbeat_timeout_s"]) + 1.0 + dt
+    return (), None
+
+
+def first_raise(events: Sequence[AlarmEvent], codes: Sequence[str], after_s: float,
+                before_s: float = math.inf) -> tuple[float, str] | None:
+    """Time and code of the first raise of one of ``codes`` in ``[after_s, before_s]`` (None: none)."""
+    for event in events:
+        if event.t_s > before_s + 1e-9:
+            break
+        if event.raised and event.t_s >= after_s - 1e-9 and event.code in codes:
+            return event.t_s, event.code
+    return None
+
+
+def alarm_intervals(events: Sequence[AlarmEvent], code: str, end_s: float = math.inf) -> list[tuple[float, float]]:
+    """``(raised, cleared)`` times of ``code`` (``end_s`` for one still active at the end)."""
+    out: list[tuple[float, float]] = []
+    start: float | None = None
+    for event in events:
+        if event.code != code:
+            continue
+        if event.raised and start is None:
+            start = event.t_s
+        elif not event.raised and start is not None:
+            out.append((start, event.t_s))
+            start = None
+    if start is not None:
+        out.append((start, end_s))
+    return out
+
+
+def fault_detections(result: RunResult) -> list[FaultDetection]:
+    """Detection of every fault of the scenario, from the run's alarm events (see :func:`expected_detection`):
+    the first raise of one of its codes while it lasts, or within twice its bound of its start."""
+    out = []
+    for fault in result.scenario.faults:
+        codes, bound = expected_detection(fault, result.config)
+        # searched while the fault lasts, and at least twice its bound (a burst has no duration)
+        until = max(fault.end_s if math.isfinite(fault.end_s) else fault.t_s, fault.t_s + 2.0 * (bound or 0.0))
+        hit = first_raise(result.alarm_events, codes, fault.t_s, until) if codes else None
+        delay = None if hit is None else hit[0] - fault.t_s
+        out.append(FaultDetection(fault, codes, bound, delay, None if hit is None else hit[1]))
+    return out
+
+
+def max_step_change(values: np.ndarray) -> np.ndarray:
+    """Largest change between consecutive rows, per column (rows: control steps)."""
+    if values.shape[0] < 2:
+        return np.zeros(values.shape[1:])
+    return np.max(np.abs(np.diff(values, axis=0)), axis=0)
