@@ -3,7 +3,7 @@
 Reads the ``timeseries.csv`` of ``sim-plant run`` output directories and writes three PNGs:
 
 * ``seed004-bluelady-velocity.png`` — Kalman–Bucy velocity estimates against the plant's true LF
-  velocities (cf. seed 004 Figs. 4–6);
+  velocities (cf. seed 004 Figs. 4–6); the y axes span t ≥ 25 s, clipping the filter's start-up transient;
 * ``seed002-mariner-rudder.png`` — rudder angle with and without the wave filter (cf. seed 002 Fig. 9);
 * ``seed003-tanker-tracking.png`` — MRAC against the fixed-gain PD (adaptation off): tracking error
   y − y_M in surge and the MRAC surge mass estimate (cf. seed 003 Figs. 9, 11 and 13).
@@ -35,7 +35,7 @@ PLOT_POINTS = 20_000  # long runs are decimated for drawing only; metrics use ev
 
 
 def read_columns(run_dir: Path, names: tuple[str, ...]) -> dict[str, np.ndarray]:
-    """Columns ``names`` of ``run_dir/timeseries.csv`` (header row of column names, then numbers)."""
+    """Columns ``names`` of ``run_dir/timeseries.csv`` (header row of column names, then numbers; empty = NaN)."""
     path = run_dir / "timeseries.csv"
     with path.open() as f:
         header = f.readline().strip().split(",")
@@ -43,7 +43,9 @@ def read_columns(run_dir: Path, names: tuple[str, ...]) -> dict[str, np.ndarray]
     if missing:
         raise KeyError(f"{path}: no column(s) {missing}")
     index = [header.index(n) for n in names]
-    data = np.loadtxt(path, delimiter=",", skiprows=1, usecols=index, ndmin=2)
+    # an empty field is missing data (e.g. no MRAC state before engagement): NaN here
+    data = np.loadtxt(path, delimiter=",", skiprows=1, usecols=index, ndmin=2,
+                      converters=lambda field: float(field) if field.strip() else math.nan)
     return {name: data[:, i] for i, name in enumerate(names)}
 
 
@@ -75,6 +77,10 @@ def bluelady_velocity(run_dir: Path, out: Path) -> None:
         ax.plot(t, c[f"est_{name}"] * scale, color="tab:blue", lw=0.7,
                 label=f"Kalman–Bucy estimate (error rms {error:.3g} {unit})")
         ax.plot(t, c[name] * scale, color="k", lw=1.2, label="true (plant LF)")
+        # y range of the settled part: the first seconds' start-up transient (P0 = I) is clipped
+        low, high = (float(f(np.r_[c[f"est_{name}"][settled], c[name][settled]] * scale)) for f in (np.min, np.max))
+        margin = 0.15 * (high - low)
+        ax.set_ylim(low - margin, high + margin)
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
         ax.legend(loc="upper right", fontsize=8)
@@ -117,20 +123,20 @@ def mariner_rudder(filtered_dir: Path, unfiltered_dir: Path, out: Path) -> None:
 
 
 def tanker_tracking(mrac_dir: Path, fixed_dir: Path, out: Path) -> None:
-    names = ("t_s", "north_m", "north_total_m", "mrac_ref_model_north_m", "mrac_mass_surge_kg",
-             "true_surge_mass_kg")
+    names = ("t_s", "north_m", "mrac_ref_model_north_m", "mrac_mass_surge_kg", "true_surge_mass_kg")
     runs = {"MRAC": read_columns(mrac_dir, names), "fixed-gain PD (mrac-fixed)": read_columns(fixed_dir, names)}
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
     for (label, c), color in zip(runs.items(), ("tab:blue", "tab:red"), strict=True):
         t_h = c["t_s"] / 3600.0
         step = max(1, t_h.size // PLOT_POINTS)
-        error = c["north_total_m"] - c["mrac_ref_model_north_m"]  # seed 003: e = y − y_M, WF motion included
+        # e = y − y_M of the true LF surge position (summary.json's mrac_tracking_error_* use the same y)
+        error = c["north_m"] - c["mrac_ref_model_north_m"]
         engaged = c["t_s"] >= ENGAGED_S
         for name, hours in (("first hour", t_h < 1.0), ("last hour", t_h >= t_h[-1] - 1.0)):
             sel = engaged & hours
             print(f"seed003 {label}: |y - y_M| {name} max {np.max(np.abs(error[sel])):.3f} m, "
                   f"rms {rms(error[sel]):.3f} m")
-        ax1.plot(t_h[::step], error[::step], color=color, lw=0.6, alpha=0.8, label=f"{label}: y − y_M")
+        ax1.plot(t_h[::step], error[::step], color=color, lw=0.6, alpha=0.8, label=f"{label}: y − y_M (true LF)")
         if label == "MRAC":
             ax2.plot(t_h[::step], c["mrac_mass_surge_kg"][::step], color=color, lw=1.0,
                      label="MRAC surge mass estimate")

@@ -19,6 +19,7 @@ import logging
 import os
 import signal
 import sys
+from collections.abc import Mapping
 from pathlib import Path
 from types import FrameType
 from typing import Any
@@ -96,15 +97,17 @@ def _cmd_run(args: argparse.Namespace) -> int:
             if not isinstance(value, dict):
                 raise ValueError(f"--override {text!r}: expected a mapping of config sections")
             overrides.update(value)
+        scenario = load_scenario(_scenario_path(args.scenario))
         if args.estimator:
-            overrides["estimator"] = {**overrides.get("estimator", {}), "kind": args.estimator}
+            base = _kept_settings(scenario.controller.get("estimator"), args.estimator, ESTIMATOR_SHARED_KEYS)
+            overrides["estimator"] = {**base, **overrides.get("estimator", {}), "kind": args.estimator}
         if args.control:
             kind = "mrac" if args.control == "mrac-fixed" else args.control
-            control = {**overrides.get("control", {}), "kind": kind}
+            base = _kept_settings(scenario.controller.get("control"), kind, ())
+            control = {**base, **overrides.get("control", {}), "kind": kind}
             if args.control == "mrac-fixed":
                 control["adapt"] = False
             overrides["control"] = control
-        scenario = load_scenario(_scenario_path(args.scenario))
         simulation = build_simulation(scenario, args.controller_config, overrides or None)
     except (ConfigError, ValueError, KeyError, OSError, yaml.YAMLError) as error:
         message = error.args[0] if isinstance(error, KeyError) and error.args else error
@@ -158,6 +161,27 @@ def _add_hil(commands: Any) -> None:
     sub.add_argument("--no-can-server", action="store_true",
                      help="do not start the python-can-remote server of 'remote' buses (someone else runs it)")
     sub.set_defaults(handler=_cmd_hil)
+
+
+# The scenario's wave-filter keys that mean the same for every DP wave filter (the sensors' noise):
+# kept when ``--estimator`` switches to another wave-filter kind.
+ESTIMATOR_SHARED_KEYS = ("position_noise_std_m", "heading_noise_std_rad")
+WAVE_FILTER_KINDS = ("mmae", "kf", "rpem", "raw")
+
+
+def _kept_settings(section: Any, kind: str, shared_keys: tuple[str, ...]) -> dict[str, Any]:
+    """What a ``--estimator``/``--control`` kind override keeps of the scenario's section: all of it for
+    the same kind (only the kind was restated), the kind-independent keys for another DP wave filter,
+    nothing otherwise (the scenario's other settings belong to a different algorithm)."""
+    if not isinstance(section, Mapping):
+        return {}
+    settings = {k: v for k, v in section.items() if k != "kind"}
+    old = section.get("kind")
+    if old == kind:
+        return settings
+    if kind in WAVE_FILTER_KINDS and old in WAVE_FILTER_KINDS:
+        return {k: v for k, v in settings.items() if k in shared_keys}
+    return {}
 
 
 def _scenario_path(text: str) -> Path:

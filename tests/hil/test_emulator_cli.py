@@ -122,3 +122,23 @@ def test_hil_process_notifies_systemd_and_stops_cleanly_on_sigterm(tmp_path: Pat
     assert summary["stopped_by"] == "signal SIGTERM"
     assert 0.0 < summary["duration_s"] < 600.0
     assert (out / "truth.csv").exists() and not port.exists()
+
+
+def test_kind_overrides_keep_what_still_applies(tmp_path: Path) -> None:
+    """``--estimator`` keeps the scenario's sensor-noise tuning when switching between DP wave filters and
+    its whole section when the kind is only restated; ``--control mrac-fixed`` keeps the MRAC settings."""
+    from sim_plant.cli import _kept_settings
+
+    rpem = {"kind": "rpem", "omega0_rad_s": 0.6, "position_noise_std_m": 0.52, "heading_noise_std_rad": 0.002}
+    assert _kept_settings(rpem, "rpem", ("position_noise_std_m",)) == {k: v for k, v in rpem.items() if k != "kind"}
+    assert _kept_settings(rpem, "mmae", ("position_noise_std_m", "heading_noise_std_rad")) == {
+        "position_noise_std_m": 0.52, "heading_noise_std_rad": 0.002}
+    assert _kept_settings(rpem, "kalman_bucy", ("position_noise_std_m",)) == {}
+    assert _kept_settings(None, "mmae", ()) == {}
+    out = tmp_path / "out"
+    assert main(["run", "tanker-seed003", "--out", str(out), "--estimator", "rpem", "--control", "mrac-fixed",
+                 "--duration", "20", "--no-plots", "--no-progress"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["control"] == "mrac" and summary["control_adapt"] is False
+    # the scenario's ω0 = 0.6 rad/s kept (the default start would be 0.8 rad/s)
+    assert summary["metrics"]["omega_hat_final_rad_s"] == pytest.approx(0.6, abs=0.05)
