@@ -508,6 +508,12 @@ class MracController:
         return np.array(self._a2)
 
     @property
+    def mass_hat_floats(self) -> tuple[float, float, float]:
+        """``â₂`` as Python floats (no array: for a per-step check whether it changed)."""
+        a2 = self._a2
+        return (a2[0], a2[1], a2[2])
+
+    @property
     def damping_hat(self) -> np.ndarray:
         """Estimated damping ``â₁`` [N·s/m, N·s/m, N·m·s/rad] (new array)."""
         return np.array(self._a1)

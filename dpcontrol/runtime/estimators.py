@@ -320,6 +320,7 @@ class MassAdaptiveEstimator:
         self._ratio = np.ones(3)  # diag(M̂ M₀⁻¹) in use
         self._tau = np.zeros(3)
         self._bias = np.zeros(3)
+        self._out: WaveFilterOutput | None = None
 
     def __getattr__(self, name: str) -> Any:
         if name == "inner":  # not set yet (copy/unpickle): no recursion
@@ -350,8 +351,15 @@ class MassAdaptiveEstimator:
              measured: tuple[bool, bool, bool] = (True, True, True)) -> WaveFilterOutput:
         """The inner step with ``τ' = M₀ M̂⁻¹ τ``; the output's bias in physical units (own array)."""
         np.divide(tau_b, self._ratio, out=self._tau)
-        out = copy.copy(self.inner.step(y_n, self._tau, measured))  # shallow: the other arrays stay the inner's
-        np.multiply(out.bias_hat_b, self._ratio, out=self._bias)
+        inner = self.inner.step(y_n, self._tau, measured)
+        # one output object reused (as the inner filter's): its fields are the inner's (the same arrays)
+        # but its own bias — a dict update instead of copy.copy of a new object every step
+        out = self._out
+        if out is None:
+            out = self._out = copy.copy(inner)
+        else:
+            vars(out).update(vars(inner))
+        np.multiply(inner.bias_hat_b, self._ratio, out=self._bias)
         out.bias_hat_b = self._bias
         return out
 

@@ -157,10 +157,11 @@ class _SensorTrack:
     rejected_samples: int = 0
     detail: str = ""
     weight: float = 0.0
+    # 1 / nominal rate [s], computed once (read a dozen times per step; the config is frozen)
+    nominal_period_s: float = field(init=False, default=0.0)
 
-    @property
-    def nominal_period_s(self) -> float:
-        return 1.0 / self.config.nominal_rate_hz
+    def __post_init__(self) -> None:
+        self.nominal_period_s = 1.0 / self.config.nominal_rate_hz
 
 
 @dataclass
@@ -220,6 +221,9 @@ class SensorHub:
         self._tracks: dict[str, _SensorTrack] = {s.name: _SensorTrack(s) for s in sensors}
         self._position = [t for t in self._tracks.values() if t.config.kind is SensorKind.POSITION]
         self._heading = [t for t in self._tracks.values() if t.config.kind is SensorKind.HEADING]
+        # the other references of each one's kind, in the configured order (the variance test's comparison)
+        self._peers = {name: [t for t in self._tracks.values() if t is not track and t.config.kind is track.config.kind]
+                       for name, track in self._tracks.items()}
         self._out = HubOutput()
         self._position_set: frozenset[str] = frozenset()
         self._heading_set: frozenset[str] = frozenset()
@@ -282,11 +286,17 @@ class SensorHub:
             self._heading_set = frozenset()
             self._heading_anchor_until_t_s = -math.inf
         self._refresh_states(t_s)
-        self._median_tests(t_s)
+        # The healthy references of each kind, once for the median test and the fusion (the median test moves
+        # references only between OK and ISOLATED, both healthy: the lists are the same after it).
+        healthy_position = self._healthy(self._position, t_s)
+        healthy_heading = self._healthy(self._heading, t_s)
+        self._median_one(healthy_position, t_s, heading=False)
+        self._median_one(healthy_heading, t_s, heading=True)
         # After a loss the references come back to an estimator that dead-reckoned: its prediction is the
         # anchor the step is faded from (not after a reset, which is there to trust the references).
-        pos_new = self._fuse_position(t_s, dt, velocity_n, None if out.position_reset else predicted_y_n)
-        head_new = self._fuse_heading(t_s, dt, None if out.heading_reset else predicted_y_n)
+        pos_new = self._fuse_position(t_s, dt, velocity_n, None if out.position_reset else predicted_y_n,
+                                      healthy_position)
+        head_new = self._fuse_heading(t_s, dt, None if out.heading_reset else predicted_y_n, healthy_heading)
         out.measured = (pos_new, pos_new, head_new)
         out.yaw_rate_radps = self._yaw_rate
         self._availability(t_s)
@@ -434,6 +444,8 @@ class SensorHub:
         samples are rejected by the freeze test, not the prediction test); a single repeated value —
         NMEA 2000 headings come in 1e-4 rad steps — is not frozen.
         """
+        if all(t.rejecting_since_t_s is None for t in tracks):
+            return False  # the usual case: nothing is being rejected (what the test below concludes then)
         persist = self.config.reject_persist_s
         live = [t for t in tracks if t.last_t_s is not None and not t.disconnected and
                 t_s - t.last_t_s <= self.config.stale_periods * t.nominal_period_s and
@@ -498,11 +510,10 @@ class SensorHub:
         single reference has nothing to compare with, so it gets no alarm — its weight still follows
         its measured variance.
         """
-        if not self._variance_settled(track) or state is not SensorState.OK:
-            return False
-        others = [t.residual_variance for t in self._tracks.values()
-                  if t is not track and t.config.kind is track.config.kind and self._variance_settled(t)
-                  and t.state is SensorState.OK]
+        peers = self._peers[track.config.name]
+        if not peers or not self._variance_settled(track) or state is not SensorState.OK:
+            return False  # (a reference alone of its kind has nothing to compare with: no per-step search)
+        others = [t.residual_variance for t in peers if self._variance_settled(t) and t.state is SensorState.OK]
         if not others:
             return False
         floor = max(track.config.sigma ** 2, min(others))
@@ -528,10 +539,6 @@ class SensorHub:
         return [t for t in tracks if t.state in (SensorState.OK, SensorState.ISOLATED) and
                 t.last_accepted_t_s is not None and
                 t_s - t.last_accepted_t_s <= self.config.stale_periods * t.nominal_period_s]
-
-    def _median_tests(self, t_s: float) -> None:
-        self._median_one(self._healthy(self._position, t_s), t_s, heading=False)
-        self._median_one(self._healthy(self._heading, t_s), t_s, heading=True)
 
     def _median_one(self, tracks: list[_SensorTrack], t_s: float, *, heading: bool) -> None:
         cfg = self.config
@@ -609,9 +616,8 @@ class SensorHub:
                 sum(w * v[1] for v, w in zip(values, weights, strict=True)) / total)
 
     def _fuse_position(self, t_s: float, dt: float, velocity_n: Sequence[float] | None,
-                       anchor: Sequence[float] | None) -> bool:
-        usable = [t for t in self._healthy(self._position, t_s)
-                  if t.state is SensorState.OK and t_s >= t.usable_from_t_s]
+                       anchor: Sequence[float] | None, healthy: list[_SensorTrack]) -> bool:
+        usable = [t for t in healthy if t.state is SensorState.OK and t_s >= t.usable_from_t_s]
         for track in self._position:
             track.weight = 0.0
         if not usable:
@@ -665,9 +671,9 @@ class SensorHub:
         self._out.position_sigma_m = 1.0 / math.sqrt(total)
         return any(t.fresh for t in usable)
 
-    def _fuse_heading(self, t_s: float, dt: float, anchor: Sequence[float] | None) -> bool:
-        usable = [t for t in self._healthy(self._heading, t_s)
-                  if t.state is SensorState.OK and t_s >= t.usable_from_t_s]
+    def _fuse_heading(self, t_s: float, dt: float, anchor: Sequence[float] | None,
+                      healthy: list[_SensorTrack]) -> bool:
+        usable = [t for t in healthy if t.state is SensorState.OK and t_s >= t.usable_from_t_s]
         for track in self._heading:
             track.weight = 0.0
         if not usable:

@@ -149,7 +149,11 @@ class DpController:
         jerk = self.force_rate_b / np.diag(vessel.mass_matrix)
         horizontal = float(min(jerk[0], jerk[1]))  # a bound for any NED direction
         self._jerk_limit_n = np.array([horizontal, horizontal, float(jerk[2])])
+        self._jerk_limit = self._jerk_limit_n.tolist()
         self._accel_ff_n: np.ndarray | None = None
+        self._mass_sent: tuple[float, float, float] | None = None  # â₂ last given to the wave filter
+        # CAPABILITY_FLOOR × the fleet's capability per DOF, as Python floats (constant; _capability_alarm)
+        self._capability_floor = (CAPABILITY_FLOOR * self.allocator.capability_scale).tolist()
         self.monitor = ThrusterMonitor(vessel.thrusters, config.thruster_monitor, self.alarms)
         n = len(vessel.thrusters)
         self.out = StepOutput(thrust_n=np.zeros(n), azimuth_rad=np.array([t.angle_rad for t in vessel.thrusters]),
@@ -215,10 +219,17 @@ class DpController:
         # --- sensor hub, against the estimator's prediction
         predicted = variance = velocity_n = None
         if self._estimator_ready:
-            predicted, variance = self.estimator.predicted_measurement()
+            predicted_n, variance_n = self.estimator.predicted_measurement()
+            # as Python floats: the hub's scalar arithmetic on numpy scalars costs several times more (same values)
+            predicted = predicted_n.tolist() if type(predicted_n) is np.ndarray else predicted_n
+            variance = variance_n.tolist() if type(variance_n) is np.ndarray else variance_n
             estimate = out.estimate
             if estimate is not None:
-                velocity_n = body_to_ned(estimate.nu_hat_b, float(estimate.eta_hat_n[2]))
+                # body_to_ned's arithmetic on Python floats, without building an array (the hub reads two)
+                psi = float(estimate.eta_hat_n[2])
+                u, v, r = estimate.nu_hat_b.tolist()
+                c, s = math.cos(psi), math.sin(psi)
+                velocity_n = (c * u - s * v, s * u + c * v, r)
         hub = self.hub.update(t_s, measurements, predicted, variance, velocity_n)
         out.hub = hub
         t1 = clock() if clock else 0.0
@@ -275,7 +286,12 @@ class DpController:
                 if control.parameters is not None:
                     out.mrac = dict(control.parameters)
                 if self._mass_adaptive is not None and not any(self.controller.excited):
-                    self._mass_adaptive.set_mass_estimate(self.controller.mass_hat)
+                    # only when â₂ changed (it is held between moves): saves an array and the filter's
+                    # ratio update on most steps; the same values give the same ratio
+                    mass = self.controller.mass_hat_floats
+                    if mass != self._mass_sent:
+                        self._mass_adaptive.set_mass_estimate(np.array(mass))
+                        self._mass_sent = mass
         t3 = clock() if clock else 0.0
 
         # --- thruster health and allocation
@@ -309,11 +325,19 @@ class DpController:
         if previous is None:
             self._accel_ff_n = np.array(accel, dtype=float)
             return reference
-        limit = self._jerk_limit_n * dt
-        previous += np.clip(accel - previous, -limit, limit)
-        if np.array_equal(previous, accel):
+        # per DOF on Python floats (the numpy clip/compare on 3-vectors cost ~3× more); p + min(max(d, −l), l)
+        # is np.clip's arithmetic, so the values are the same
+        a = accel.tolist()
+        p = previous.tolist()
+        j0, j1, j2 = self._jerk_limit
+        l0, l1, l2 = j0 * dt, j1 * dt, j2 * dt
+        p0 = p[0] + min(max(a[0] - p[0], -l0), l0)
+        p1 = p[1] + min(max(a[1] - p[1], -l1), l1)
+        p2 = p[2] + min(max(a[2] - p[2], -l2), l2)
+        previous[:] = (p0, p1, p2)
+        if p0 == a[0] and p1 == a[1] and p2 == a[2]:
             return reference
-        return Reference(reference.eta_d_n, reference.eta_dot_d_n, previous.copy())
+        return Reference(reference.eta_d_n, reference.eta_dot_d_n, np.array((p0, p1, p2)))
 
     def _update_force_input(self) -> None:
         """The force the estimator predicts the next period with: what the drives deliver *now* (this
@@ -359,12 +383,20 @@ class DpController:
             wanted = Mode.AUTO_HEADING if self.autopilot is not None else Mode.AUTO_POSITION
             self._requested_mode = wanted
         # Loss of references.
+        # (the alarm texts are built only while the alarm is active: formatting them every step cost more
+        # than the rest of the mode logic)
         dead_reckoning = self._estimator_ready and not hub.position_available
-        self.alarms.set(t_s, "position.dead_reckoning", dead_reckoning and self.mode is Mode.AUTO_POSITION,
-                        Severity.ALARM, f"no position reference: dead reckoning for {hub.position_lost_s:.1f} s")
+        if dead_reckoning and self.mode is Mode.AUTO_POSITION:
+            self.alarms.raise_(t_s, "position.dead_reckoning", Severity.ALARM,
+                               f"no position reference: dead reckoning for {hub.position_lost_s:.1f} s")
+        else:
+            self.alarms.clear(t_s, "position.dead_reckoning")
         heading_lost = self._estimator_ready and not hub.heading_available
-        self.alarms.set(t_s, "heading.lost", heading_lost, Severity.ALARM,
-                        f"no heading reference for {hub.heading_lost_s:.1f} s")
+        if heading_lost:
+            self.alarms.raise_(t_s, "heading.lost", Severity.ALARM,
+                               f"no heading reference for {hub.heading_lost_s:.1f} s")
+        else:
+            self.alarms.clear(t_s, "heading.lost")
         if self.mode is not Mode.STANDBY:
             if heading_lost and hub.heading_lost_s >= fb.heading_loss_limit_s:
                 wanted = Mode.STANDBY if fb.heading_loss == "standby" else Mode.AUTO_HEADING
@@ -431,9 +463,13 @@ class DpController:
             self.alarms.clear(t_s, "thrusters.capability")
             self._shortfall_since = None
             return
-        scale = self.allocator.capability_scale
-        reference = np.maximum(np.abs(out.tau_b), CAPABILITY_FLOOR * scale)
-        short = bool(np.any(np.abs(out.shortfall_b) > s.shortfall_fraction * reference))
+        # on Python floats (three numbers; numpy calls cost several times the arithmetic)
+        fraction = s.shortfall_fraction
+        f0, f1, f2 = self._capability_floor
+        t0, t1, t2 = out.tau_b.tolist()
+        m0, m1, m2 = out.shortfall_b.tolist()
+        short = (abs(m0) > fraction * max(abs(t0), f0) or abs(m1) > fraction * max(abs(t1), f1)
+                 or abs(m2) > fraction * max(abs(t2), f2))
         since = self._shortfall_since
         if short:
             if since is None:
@@ -478,6 +514,7 @@ class DpController:
         self.out.azimuth_rad[:] = state["azimuth_rad"]
         self.setpoint_n[:] = state["setpoint_n"]
         self._setpoint_given = bool(state.get("setpoint_given", True))
+        self._mass_sent = None  # the restored filter's mass ratio is not what was last sent
         if "estimator" in state:
             self.estimator.load_state_dict(state["estimator"])
             self._estimator_ready = True

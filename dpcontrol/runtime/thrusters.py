@@ -77,6 +77,15 @@ class ThrusterMonitor:
         self.available = np.ones(len(self._health), dtype=bool)
         self.feedback_seen = False
         self.unknown_feedback = 0
+        # alarm codes built once (an f-string per thruster and step cost more than the health logic)
+        self._codes = [(f"thruster.{spec.name}.feedback_lost", f"thruster.{spec.name}.unavailable")
+                       for spec in thrusters]
+        # per dt: (per thruster (1 − e^{−dt/T}, Ṫmax·dt), mismatch filter gain), computed once per value
+        self._factors: dict[float, tuple[list[tuple[float, float]], float]] = {}
+        self._available_list = [True] * len(self._health)
+        # the codes this monitor has raised (only it raises them): clear() is called only for these, not for
+        # every thruster and step (a registry look-up each, most of the monitor's cost)
+        self._raised: set[str] = set()
 
     def feedback(self, items: Sequence[ThrusterFeedback]) -> None:
         """Store the latest feedback of each drive."""
@@ -106,23 +115,47 @@ class ThrusterMonitor:
             Availability mask for the allocator (a view, updated in place).
         """
         s = self.settings
+        alarms = self.alarms
+        if dt_s > 0.0:
+            # the measured period takes a handful of values (k·dt differences jitter in the last bits)
+            factors = self._factors.get(dt_s)
+            if factors is None:
+                factors = ([(1.0 - math.exp(-dt_s / h.spec.time_constant_s), h.spec.thrust_rate_limit_nps * dt_s)
+                            for h in self._health], -math.expm1(-dt_s / MISMATCH_FILTER_S))
+                if len(self._factors) < 64:
+                    self._factors[dt_s] = factors
+            responses, mismatch_alpha = factors
+        targets = commanded_thrust_n.tolist() if type(commanded_thrust_n) is np.ndarray else list(commanded_thrust_n)
+        timeout = s.feedback_timeout_s
+        fraction = s.mismatch_fraction
+        available_all = self._available_list
+        raised = self._raised
         for i, health in enumerate(self._health):
             spec = health.spec
             # Expected delivered thrust: first-order lag with the drive's rate limit.
-            target = float(commanded_thrust_n[i])
+            target = float(targets[i])
             if dt_s > 0.0:
-                step = (target - health.expected_n) * (1.0 - math.exp(-dt_s / spec.time_constant_s))
-                limit = spec.thrust_rate_limit_nps * dt_s
-                health.expected_n += max(-limit, min(limit, step))
+                response, limit = responses[i]
+                step = (target - health.expected_n) * response
+                # max(−limit, min(limit, step)) written out (same result, NaN included; no builtin calls)
+                step = step if step < limit else limit
+                health.expected_n += step if step > -limit else -limit
             feedback = health.last_feedback
             name = spec.name
-            if feedback is None or t_s - feedback.t_s > s.feedback_timeout_s:
+            lost_code, unavailable_code = self._codes[i]
+            if feedback is None or t_s - feedback.t_s > timeout:
                 # No (recent) feedback: availability keeps its last state; flag only if it was seen before.
-                stale = feedback is not None
-                self.alarms.set(t_s, f"thruster.{name}.feedback_lost", stale, Severity.WARNING,
-                                f"{name}: no feedback for more than {s.feedback_timeout_s:g} s")
+                if feedback is not None:
+                    alarms.raise_(t_s, lost_code, Severity.WARNING,
+                                  f"{name}: no feedback for more than {s.feedback_timeout_s:g} s")
+                    raised.add(lost_code)
+                elif lost_code in raised:
+                    alarms.clear(t_s, lost_code)
+                    raised.discard(lost_code)
             else:
-                self.alarms.clear(t_s, f"thruster.{name}.feedback_lost")
+                if lost_code in raised:
+                    alarms.clear(t_s, lost_code)
+                    raised.discard(lost_code)
                 if not feedback.ready:
                     health.not_ready = True
                     health.ready_since_t_s = None
@@ -144,13 +177,13 @@ class ThrusterMonitor:
                     # what it should deliver, floored at RELATIVE_FLOOR of the rating: a drive delivering
                     # nothing (or pushing the wrong way) at 5–20 % load is a failure too.
                     error = abs(feedback.thrust_n - health.expected_n)
-                    limit_now = min(s.mismatch_fraction * spec.max_thrust_n,
+                    limit_now = min(fraction * spec.max_thrust_n,
                                     max(RELATIVE_MISMATCH * abs(health.expected_n),
                                         RELATIVE_FLOOR * spec.max_thrust_n))
                     if not math.isfinite(health.limit_n):
                         health.limit_n = limit_now
                     if dt_s > 0.0:
-                        alpha = -math.expm1(-dt_s / MISMATCH_FILTER_S)
+                        alpha = mismatch_alpha
                         health.error_n += (error - health.error_n) * alpha
                         health.limit_n += (limit_now - health.limit_n) * alpha
                     limit = health.limit_n
@@ -167,9 +200,14 @@ class ThrusterMonitor:
             available = not (health.not_ready or health.failed_mismatch)
             if not available:
                 health.expected_n = 0.0  # it is commanded to zero from now on
-            self.available[i] = available
-            self.alarms.set(t_s, f"thruster.{name}.unavailable", not available, Severity.ALARM,
-                            f"{name} removed from allocation: {health.detail}")
+            available_all[i] = available
+            if not available:
+                alarms.raise_(t_s, unavailable_code, Severity.ALARM, f"{name} removed from allocation: {health.detail}")
+                raised.add(unavailable_code)
+            elif unavailable_code in raised:
+                alarms.clear(t_s, unavailable_code)
+                raised.discard(unavailable_code)
+        self.available[:] = available_all  # one write instead of a numpy item write per thruster
         return self.available
 
     def reset(self, name: str) -> bool:
@@ -189,10 +227,17 @@ class ThrusterMonitor:
         """Latest delivered thrust [N] and azimuth [rad] per thruster, or None without feedback."""
         if not self.feedback_seen:
             return None
-        thrust = np.array([h.last_feedback.thrust_n if h.last_feedback else 0.0 for h in self._health])
-        azimuth = np.array([h.last_feedback.azimuth_rad if h.last_feedback else h.spec.angle_rad
-                            for h in self._health])
-        return thrust, azimuth
+        thrust = []
+        azimuth = []
+        for h in self._health:  # one pass over the drives for both lists
+            feedback = h.last_feedback
+            if feedback is not None:
+                thrust.append(feedback.thrust_n)
+                azimuth.append(feedback.azimuth_rad)
+            else:
+                thrust.append(0.0)
+                azimuth.append(h.spec.angle_rad)
+        return np.array(thrust), np.array(azimuth)
 
     def status(self) -> list[dict[str, object]]:
         """Per-thruster availability for the status message."""

@@ -681,6 +681,7 @@ def decode_sentence(sentence: bytes | str, max_sentence_chars: int = NMEA_MAX_SE
 
 _TALKER_RE = re.compile(r"[A-Z0-9]{2}")
 _checksum = pynmea2.NMEASentence.checksum
+_RENDER_CHECKED: set[tuple[str, str]] = set()  # (talker, sentence type) pairs _render has validated
 
 
 def _render(talker: str, sentence_type: str, fields: list[str]) -> bytes:
@@ -690,10 +691,13 @@ def _render(talker: str, sentence_type: str, fields: list[str]) -> bytes:
     (identifier, comma-joined fields, ``*%02X`` of pynmea2's checksum); formatting it here skips building
     a sentence object whose attribute hooks cost more than the rest of the encoding.
     """
-    if not _TALKER_RE.fullmatch(talker):
-        raise ValueError(f"talker {talker!r} is not two upper-case letters or digits")
-    if sentence_type not in pynmea2.TalkerSentence.sentence_types:
-        raise ValueError(f"pynmea2 does not know the sentence type {sentence_type!r}")
+    if (talker, sentence_type) not in _RENDER_CHECKED:  # validated once per pair (a regex per sentence costs)
+        if not _TALKER_RE.fullmatch(talker):
+            raise ValueError(f"talker {talker!r} is not two upper-case letters or digits")
+        if sentence_type not in pynmea2.TalkerSentence.sentence_types:
+            raise ValueError(f"pynmea2 does not know the sentence type {sentence_type!r}")
+        if len(_RENDER_CHECKED) < 1024:  # bounded: talkers come from configuration
+            _RENDER_CHECKED.add((talker, sentence_type))
     body = f"{talker}{sentence_type},{','.join(fields)}"
     out = f"${body}*{_checksum(body):02X}\r\n".encode("ascii")
     if len(out) > NMEA_MAX_SENTENCE_CHARS:

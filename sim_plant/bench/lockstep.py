@@ -425,6 +425,10 @@ MRAC_COLUMNS = ["mrac_mass_surge_kg", "mrac_mass_sway_kg", "mrac_inertia_yaw_kgm
                 "mrac_damping_sway_nspm", "mrac_damping_yaw_nmsprad", "mrac_ref_model_north_m", "mrac_ref_model_east_m",
                 "mrac_ref_model_heading_rad"]
 EXTRA_COLUMNS = ["mode", "true_surge_mass_kg", "est_bias_x_n", "est_bias_y_n", "est_bias_n_nm"]
+_MRAC_KEYS = [name[len("mrac_"):] for name in MRAC_COLUMNS]
+_NAN3 = (math.nan,) * 3
+_NAN6 = (math.nan,) * 6
+_NAN_MRAC = (math.nan,) * len(MRAC_COLUMNS)
 
 
 def column_names(n_models: int, thruster_names: list[str]) -> list[str]:
@@ -696,7 +700,6 @@ class LockstepSimulation:
         names = column_names(len(self.omegas), self.thruster_names)
         data = np.full((steps if timeseries else 1, len(names)), np.nan)
         columns = Columns(names, data)
-        col = {name: i for i, name in enumerate(names)}
         plant = self.plant
         controller = self.controller
         inputs = self.inputs
@@ -710,11 +713,7 @@ class LockstepSimulation:
         mode_changes: list[tuple[float, str, str, str]] = []
         alarm_events: list[AlarmEvent] = []
         n_models = len(self.omegas)
-        n_thr = len(self.thruster_names)
-        i_weights = col["weight_0"] if n_models else 0
-        i_thrust = col[f"thrust_{self.thruster_names[0]}_n"] if n_thr else 0
-        i_azimuth = col[f"azimuth_{self.thruster_names[0]}_rad"] if n_thr else 0
-        truth_cols = [col[c] for c in TRUTH_COLUMNS]
+        n_names = len(names)
         wall0 = time.perf_counter()
         report_every = max(1, steps // 200)
         for k in range(steps):
@@ -745,12 +744,12 @@ class LockstepSimulation:
             alarm_events.extend(alarms.drain_events())
             for change in out.mode_changes:
                 mode_changes.append((t, *change))
-            for i, name in enumerate(self.thruster_names):
-                commands[name] = ThrusterCommand(float(out.thrust_n[i]), float(out.azimuth_rad[i]),
-                                                 bool(out.enabled[i]))
+            # (Python floats/bools from one tolist() per array instead of a numpy scalar per element)
+            for name, thrust, azimuth, enabled in zip(self.thruster_names, out.thrust_n.tolist(),
+                                                      out.azimuth_rad.tolist(), out.enabled.tolist(), strict=True):
+                commands[name] = ThrusterCommand(thrust, azimuth, enabled)
             plant.command(t, commands)
-            self._record(data[k if timeseries else 0], col, truth_cols, out,
-                         (i_weights, n_models, i_thrust, i_azimuth, n_thr))
+            data[k if timeseries else 0] = self._record(out, n_models, n_names)
             if observer is not None:
                 observer(t, out)
             if progress is not None and k % report_every == 0:
@@ -765,47 +764,53 @@ class LockstepSimulation:
         return RunResult(scenario, self.config, columns, self.omegas, wall, steps, listed, mode_changes, counters,
                          alarm_events)
 
-    def _record(self, row: np.ndarray, col: dict[str, int], truth_cols: list[int], out: StepOutput,
-                blocks: tuple[int, int, int, int, int]) -> None:
-        i_weights, n_models, i_thrust, i_azimuth, n_thr = blocks
+    def _record(self, out: StepOutput, n_models: int, n_names: int) -> list[float]:
+        """One row of the time series, in :func:`column_names` order (NaN where a value does not exist).
+
+        Built as a list of Python floats and written with one row assignment: a numpy item or slice write
+        per column group cost several times more (the values are the same float64s).
+        """
+        nan = math.nan
         truth = self.plant.truth
-        row[truth_cols] = (truth.t_s, truth.north_m, truth.east_m, truth.heading_rad, truth.north_total_m,
-                           truth.east_total_m, truth.heading_total_rad, truth.surge_mps, truth.sway_mps,
-                           truth.yaw_rate_radps)
+        values = [truth.t_s, truth.north_m, truth.east_m, truth.heading_rad, truth.north_total_m,
+                  truth.east_total_m, truth.heading_total_rad, truth.surge_mps, truth.sway_mps,
+                  truth.yaw_rate_radps]
         hub = out.hub
-        if hub is not None and hub.position_available:
-            row[col["meas_north_m"]] = hub.y_n[0]
-            row[col["meas_east_m"]] = hub.y_n[1]
-        if hub is not None and hub.heading_available:
-            row[col["meas_heading_rad"]] = hub.y_n[2]
+        position = hub is not None and hub.position_available
+        heading = hub is not None and hub.heading_available
+        values += (hub.y_n[0] if position else nan, hub.y_n[1] if position else nan,  # type: ignore[union-attr]
+                   hub.y_n[2] if heading else nan)  # type: ignore[union-attr]
         estimate = out.estimate
         if estimate is not None:
-            i = col["est_north_m"]
-            row[i:i + 3] = estimate.eta_hat_n
-            row[i + 3:i + 6] = estimate.nu_hat_b
-            j = col["est_bias_x_n"]
-            row[j:j + 3] = estimate.bias_hat_b
-            if n_models and estimate.weights is not None:
-                row[i_weights:i_weights + n_models] = estimate.weights
-            if estimate.omega_hat_rad_s is not None:
-                row[col["omega_hat_rad_s"]] = estimate.omega_hat_rad_s
+            values += estimate.eta_hat_n.tolist()
+            values += estimate.nu_hat_b.tolist()
+        else:
+            values += _NAN6
         reference = out.reference
-        if reference is not None:
-            i = col["ref_north_m"]
-            row[i:i + 3] = reference.eta_d_n
-        i = col["tau_x_n"]
-        row[i:i + 3] = out.tau_b
-        row[i + 3:i + 6] = truth.tau_act_b
-        row[col["omega_peak_rad_s"]] = truth.omega_peak_rad_s if truth.omega_peak_rad_s is not None else np.nan
-        row[col["motion_peak_rad_s"]] = truth.motion_peak_rad_s if truth.motion_peak_rad_s is not None else np.nan
-        row[col["mass_factor"]] = truth.mass_factor
-        row[col["true_surge_mass_kg"]] = truth.surge_mass_kg
-        if out.mrac is not None:
-            for name in MRAC_COLUMNS:
-                value = out.mrac.get(name[len("mrac_"):])
-                if value is not None:
-                    row[col[name]] = value
-        if n_thr:
-            row[i_thrust:i_thrust + n_thr] = out.thrust_n
-            row[i_azimuth:i_azimuth + n_thr] = out.azimuth_rad
-        row[col["mode"]] = MODE_CODES[out.mode]
+        values += reference.eta_d_n.tolist() if reference is not None else _NAN3
+        values += out.tau_b.tolist()
+        values += truth.tau_act_b
+        if n_models:
+            if estimate is not None and estimate.weights is not None:
+                values += estimate.weights.tolist()
+            else:
+                values += [nan] * n_models
+        omega_hat = None if estimate is None else estimate.omega_hat_rad_s
+        values += (nan if omega_hat is None else omega_hat,
+                   nan if truth.omega_peak_rad_s is None else truth.omega_peak_rad_s,
+                   nan if truth.motion_peak_rad_s is None else truth.motion_peak_rad_s,
+                   truth.mass_factor)
+        mrac = out.mrac
+        if mrac is not None:
+            for key in _MRAC_KEYS:
+                value = mrac.get(key)
+                values.append(nan if value is None else value)
+        else:
+            values += _NAN_MRAC
+        values += out.thrust_n.tolist()
+        values += out.azimuth_rad.tolist()
+        values += (MODE_CODES[out.mode], truth.surge_mass_kg)
+        values += estimate.bias_hat_b.tolist() if estimate is not None else _NAN3
+        if len(values) != n_names:
+            raise RuntimeError("internal: the recorded row does not match the columns")
+        return values

@@ -16,7 +16,7 @@ from typing import Any
 import pytest
 import yaml
 
-from sim_plant.cli import main
+from sim_plant.cli import _kept_settings, main
 
 ROOT = Path(__file__).resolve().parents[2]
 START_TIMEOUT_S = 60.0  # a cold interpreter importing zenoh, scipy, python-can on a loaded 2-core machine
@@ -127,8 +127,6 @@ def test_hil_process_notifies_systemd_and_stops_cleanly_on_sigterm(tmp_path: Pat
 def test_kind_overrides_keep_what_still_applies(tmp_path: Path) -> None:
     """``--estimator`` keeps the scenario's sensor-noise tuning when switching between DP wave filters and
     its whole section when the kind is only restated; ``--control mrac-fixed`` keeps the MRAC settings."""
-    from sim_plant.cli import _kept_settings
-
     rpem = {"kind": "rpem", "omega0_rad_s": 0.6, "position_noise_std_m": 0.52, "heading_noise_std_rad": 0.002}
     assert _kept_settings(rpem, "rpem", ("position_noise_std_m",)) == {k: v for k, v in rpem.items() if k != "kind"}
     assert _kept_settings(rpem, "mmae", ("position_noise_std_m", "heading_noise_std_rad")) == {
