@@ -19,6 +19,7 @@ status, saves its state, closes the recorder and exits 0.
 from __future__ import annotations
 
 import collections
+import gc
 import itertools
 import logging
 import math
@@ -369,6 +370,12 @@ class Daemon:
             log.error("start-up failed: %s", error)
             self._close()
             return 1
+        # Everything allocated so far (modules, the CANboat PGN database, MAVLink dialect, zenoh, the
+        # model bank) lives as long as the process: move it out of the collector's reach, or every full
+        # collection walks ~10^5 objects inside a control cycle (measured 17–23 ms per gc.collect() on
+        # the demo configuration, 1 µs after gc.freeze()).
+        gc.collect()
+        gc.freeze()
         period = self.config.sample_time_s
         t0 = self.clock()
         deadline = t0

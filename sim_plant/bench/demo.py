@@ -45,6 +45,9 @@ DEMO_SENSORS = [
     {"name": "gnss3", "kind": "gnss", "protocol": "mavlink", "rate_hz": 5},
 ]
 READY_TIMEOUT_S = 60.0
+# The emulator runs this much longer than the scenario: the daemon is stopped first (SIGTERM), and the
+# plant must still be there to receive its last command — zero thrust — before it is stopped in turn.
+STOP_MARGIN_S = 30.0
 
 
 class DemoError(RuntimeError):
@@ -189,7 +192,8 @@ def run_demo(scenario_path: Path, run_dir: Path | None = None, *, duration_s: fl
     emulator = daemon = None
     try:
         say(f"run directory {run_dir}")
-        emulator = _spawn(emulator_command(scenario_file, config_file, wiring, run_dir / "plant", duration),
+        emulator = _spawn(emulator_command(scenario_file, config_file, wiring, run_dir / "plant",
+                                           duration + STOP_MARGIN_S),
                           run_dir / "sim-plant.log", plant_notify)
         if not plant_notify.wait_ready(READY_TIMEOUT_S, emulator):
             raise DemoError(f"the emulator did not become ready (see {run_dir / 'sim-plant.log'})")
@@ -214,7 +218,8 @@ def run_demo(scenario_path: Path, run_dir: Path | None = None, *, duration_s: fl
                     break
                 time.sleep(min(10.0, max(0.0, end - time.monotonic())))
                 say(f"t = {time.monotonic() - plant_start:5.0f} s of {duration:g} s")
-        daemon_code = _stop(daemon)
+        daemon_code = _stop(daemon)  # first: its last command is zero thrust, which the plant still receives
+        time.sleep(0.5)  # the command's way over Zenoh to the emulator (published before the daemon exits)
         plant_code = _stop(emulator)
         say(f"stopped: dpcontrol exit {daemon_code}, sim-plant exit {plant_code}")
         report_dir = write_report(run_dir, wiring, daemon_code=daemon_code, plant_code=plant_code)
