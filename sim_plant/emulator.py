@@ -81,7 +81,6 @@ import numpy as np
 from interfaces.messages import FixQuality, Heading, PositionFix, SensorMessage
 from interfaces.systemd import SystemdNotifier
 from interfaces.zenoh.config import ZenohConfig
-from sim_plant.faults import Fault
 from sim_plant.hil_config import (
     CanTransport,
     ControllerWiring,
@@ -94,6 +93,7 @@ from sim_plant.hil_config import (
 from sim_plant.hil_links import HilLinkError, Link, MavlinkLink, N2kLink, SerialLink
 from sim_plant.hil_zenoh import Operator, PlantZenoh, ReceivedCommand
 from sim_plant.plant import Plant
+from sim_plant.protocol_faults import ProtocolFaultAction, protocol_fault_actions
 from sim_plant.scenario import Scenario
 from sim_plant.sensors import SensorSample
 from sim_plant.thrusters import CommandError, ThrusterCommand
@@ -305,15 +305,6 @@ class _SafeRecord:
                 log.exception("record callable failed (further failures are only counted)")
 
 
-@dataclass
-class _FaultAction:
-    t_s: float
-    order: int  # 0: before the samples of the tick (unplug, replug, silence), 1: after (bursts)
-    fault: Fault
-    action: str  # "burst" | "unplug" | "replug" | "silence"
-    index: int
-
-
 class HilEmulator:
     """The real-time emulator of one scenario against one controller configuration.
 
@@ -494,19 +485,6 @@ class HilEmulator:
         return self._summary
 
     # -- the loop ----------------------------------------------------------------------------------
-    def _fault_actions(self) -> list[_FaultAction]:
-        actions: list[_FaultAction] = []
-        for index, fault in enumerate(self.scenario.faults):
-            if fault.kind == "malformed_burst":
-                actions.append(_FaultAction(fault.t_s, 1, fault, "burst", index))
-            elif fault.kind == "serial_unplug":
-                actions.append(_FaultAction(fault.t_s, 0, fault, "unplug", index))
-                if math.isfinite(fault.end_s):
-                    actions.append(_FaultAction(fault.end_s, 0, fault, "replug", index))
-            elif fault.kind == "heartbeat_loss":
-                actions.append(_FaultAction(fault.t_s, 0, fault, "silence", index))
-        return sorted(actions, key=lambda a: (a.t_s, a.order, a.index))
-
     def _loop(self) -> None:
         assert self.zenoh is not None and self.operator is not None
         options = self.options
@@ -514,7 +492,7 @@ class HilEmulator:
         end = self.duration_s
         feedback_hz, truth_hz = options.feedback_rate_hz, options.truth_rate_hz  # grids advanced by _tick
         catchup_s = options.max_catchup_s
-        actions = self._fault_actions()
+        actions = protocol_fault_actions(self.scenario.faults)
         links = list(self.links.values())
         watchdog_s = self.notifier.watchdog_interval_s()
         next_watchdog = 0.0
@@ -553,7 +531,7 @@ class HilEmulator:
             if final:
                 break
 
-    def _tick(self, t: float, actions: list[_FaultAction], links: Sequence[Link], catchup: bool) -> None:
+    def _tick(self, t: float, actions: list[ProtocolFaultAction], links: Sequence[Link], catchup: bool) -> None:
         """Everything due at plant time ``t`` (see the module docstring for the order)."""
         plant = self.plant
         self._apply_inputs(t)
@@ -634,7 +612,7 @@ class HilEmulator:
                 continue
             link.send(sensor, t_s, messages)
 
-    def _apply_fault(self, action: _FaultAction, t: float) -> None:
+    def _apply_fault(self, action: ProtocolFaultAction, t: float) -> None:
         fault = action.fault
         link = self._link_of.get(fault.target)
         entry: dict[str, Any] = {"t_s": action.t_s, "applied_t_s": t, "kind": fault.kind, "action": action.action,

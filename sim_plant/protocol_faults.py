@@ -20,7 +20,9 @@ The kinds take turns (item ``i`` is kind ``i mod 3``), so any count ≥ 3 exerci
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -33,6 +35,7 @@ from interfaces.nmea2000.codec import (
     PGN_VESSEL_HEADING,
     make_can_id,
 )
+from sim_plant.faults import Fault
 
 Frame = tuple[int, bytes]
 
@@ -152,3 +155,31 @@ def mavlink_burst(packets: Sequence[bytes], count: int, rng: np.random.Generator
         else:
             out.append(bytes(packet[:int(rng.integers(3, len(packet) - 1))]))
     return out
+
+
+@dataclass(frozen=True)
+class ProtocolFaultAction:
+    """One protocol-fault action on the emulator's or the lockstep's schedule."""
+
+    t_s: float
+    order: int  # 0: before the samples of the step (unplug, replug, silence), 1: after them (bursts)
+    fault: Fault
+    action: str  # "burst" | "unplug" | "replug" | "silence"
+    index: int  # the fault's index in the scenario (seeds its random stream)
+
+
+def protocol_fault_actions(faults: Sequence[Fault]) -> list[ProtocolFaultAction]:
+    """The schedule of the scenario's protocol faults (``malformed_burst``, ``serial_unplug`` with its
+    replug, ``heartbeat_loss``), by time, then order, then scenario index — the one schedule the
+    real-time emulator and the lockstep simulation both carry out."""
+    actions: list[ProtocolFaultAction] = []
+    for index, fault in enumerate(faults):
+        if fault.kind == "malformed_burst":
+            actions.append(ProtocolFaultAction(fault.t_s, 1, fault, "burst", index))
+        elif fault.kind == "serial_unplug":
+            actions.append(ProtocolFaultAction(fault.t_s, 0, fault, "unplug", index))
+            if math.isfinite(fault.end_s):
+                actions.append(ProtocolFaultAction(fault.end_s, 0, fault, "replug", index))
+        elif fault.kind == "heartbeat_loss":
+            actions.append(ProtocolFaultAction(fault.t_s, 0, fault, "silence", index))
+    return sorted(actions, key=lambda a: (a.t_s, a.order, a.index))

@@ -35,9 +35,14 @@ from interfaces.nmea0183 import Nmea0183Decoder
 from interfaces.nmea2000.codec import N2kDecoder
 from interfaces.zenoh.schemas import SetpointRequest
 from sim_plant.encoding import DATE_DAYS_SINCE_1970, MavlinkSensorEncoder, N2kSensorEncoder, NmeaSensorEncoder
-from sim_plant.faults import Fault
 from sim_plant.plant import Plant
-from sim_plant.protocol_faults import mavlink_burst, n2k_burst, nmea0183_burst
+from sim_plant.protocol_faults import (
+    ProtocolFaultAction,
+    mavlink_burst,
+    n2k_burst,
+    nmea0183_burst,
+    protocol_fault_actions,
+)
 from sim_plant.scenario import Scenario
 from sim_plant.sensors import GnssSpec, InvalidFix, SensorSample
 from sim_plant.thrusters import ThrusterCommand
@@ -145,17 +150,6 @@ class RunResult:
     alarm_events: list[AlarmEvent] = field(default_factory=list)
 
 
-@dataclass(frozen=True)
-class _FaultAction:
-    """A protocol fault as the lockstep carries it out (as the emulator does, ``sim_plant/emulator.py``)."""
-
-    t_s: float
-    order: int  # 0: before the samples of the step (unplug, replug, silence), 1: after them (bursts)
-    fault: Fault
-    action: str  # "burst" | "unplug" | "replug" | "silence"
-    index: int  # the fault's index in the scenario (seeds its random stream, as in the emulator)
-
-
 class _Inputs:
     """The daemon's decoders, router and transport health, fed with the plant's encoded bytes (no transport).
 
@@ -224,23 +218,9 @@ class _Inputs:
         for transport in {route.transport for route in config.routes if protocols[route.transport] == "mavlink"}:
             timeout = float(next(t.settings for t in config.transports if t.name == transport)["heartbeat_timeout_s"])
             self._monitors[transport] = HeartbeatMonitor(timeout, start_t_s=0.0)
-        self.actions = self._fault_actions(scenario.faults)
+        self.actions = protocol_fault_actions(scenario.faults)
 
     # ---------------------------------------------------------------- protocol faults
-    def _fault_actions(self, faults: tuple[Fault, ...]) -> list[_FaultAction]:
-        actions = []
-        for index, fault in enumerate(faults):
-            if fault.kind == "malformed_burst":
-                actions.append(_FaultAction(fault.t_s, 1, fault, "burst", index))
-            elif fault.kind == "serial_unplug":
-                actions.append(_FaultAction(fault.t_s, 0, fault, "unplug", index))
-                if math.isfinite(fault.end_s):
-                    actions.append(_FaultAction(fault.end_s, 0, fault, "replug", index))
-            elif fault.kind == "heartbeat_loss":
-                actions.append(_FaultAction(fault.t_s, 0, fault, "silence", index))
-        actions.sort(key=lambda a: (a.t_s, a.order))
-        return actions
-
     def apply_faults(self, t: float, order: int) -> None:
         """Carry out the protocol-fault actions of ``order`` due by ``t``."""
         actions = self.actions
@@ -253,7 +233,7 @@ class _Inputs:
             del actions[i]
             self._apply(action, t)
 
-    def _apply(self, action: _FaultAction, t: float) -> None:
+    def _apply(self, action: ProtocolFaultAction, t: float) -> None:
         fault = action.fault
         sensor = fault.target
         transport = self.transport_of.get(sensor)
