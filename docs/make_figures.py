@@ -28,6 +28,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
+from sim_plant.bench.report import band_std
+
 ENGAGED_S = 20.0  # every seed scenario engages DP / the autopilot at 20 s
 KB_SETTLED_S = 25.0  # seed 004: the Kalman–Bucy start-up transient (P0 = I) is over
 MARINER_WAVE_BAND_RAD_S = (0.7, 1.8)  # around the mariner's yaw motion peak (1.05–1.33 rad/s encounter)
@@ -51,15 +53,6 @@ def read_columns(run_dir: Path, names: tuple[str, ...]) -> dict[str, np.ndarray]
 
 def rms(x: np.ndarray) -> float:
     return float(np.sqrt(np.mean(x * x)))
-
-
-def band_std(x: np.ndarray, dt_s: float, band_rad_s: tuple[float, float]) -> float:
-    """Standard deviation of the part of ``x`` inside ``band_rad_s`` (FFT band-pass, mean removed)."""
-    x = x - x.mean()
-    spectrum = np.fft.rfft(x)
-    omega = 2.0 * math.pi * np.fft.rfftfreq(x.size, dt_s)
-    spectrum[(omega < band_rad_s[0]) | (omega > band_rad_s[1])] = 0.0
-    return float(np.std(np.fft.irfft(spectrum, x.size)))
 
 
 def bluelady_velocity(run_dir: Path, out: Path) -> None:

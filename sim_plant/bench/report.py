@@ -84,6 +84,17 @@ def wave_frequency_std(signal: np.ndarray, dt_s: float, low_rad_s: float) -> flo
     return float(math.sqrt(float(np.sum(psd[band])) * float(freq_hz[1] - freq_hz[0])))
 
 
+def band_std(signal: np.ndarray, dt_s: float, band_rad_s: tuple[float, float]) -> float:
+    """Standard deviation of the part of ``signal`` inside ``band_rad_s`` [rad/s] (FFT band-pass, mean
+    removed): the wave-band motion of a rudder, where the record is a whole number of course changes and
+    a plain FFT band-pass is what the seed 002 comparison needs."""
+    x = signal - signal.mean()
+    spectrum = np.fft.rfft(x)
+    omega = 2.0 * math.pi * np.fft.rfftfreq(x.size, dt_s)
+    spectrum[(omega < band_rad_s[0]) | (omega > band_rad_s[1])] = 0.0
+    return float(np.std(np.fft.irfft(spectrum, x.size)))
+
+
 def settle_time_s(low_rad_s: float) -> float:
     """Time skipped after DP engages before the wave-frequency metrics: three periods of the cutoff
     (the engagement transient's content at frequency ω has decayed within a few of its periods)."""

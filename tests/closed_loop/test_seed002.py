@@ -18,7 +18,7 @@ import pytest
 from dpcontrol.models.vessels import MARINER
 from dpcontrol.runtime.estimators import CourseKeepingEstimator
 from sim_plant.bench.lockstep import LockstepSimulation, RunResult
-from sim_plant.bench.report import wrap_headings
+from sim_plant.bench.report import band_std, wrap_headings
 from sim_plant.bench.run import build_simulation
 from sim_plant.scenario import builtin_scenario_path, load_scenario
 
@@ -52,15 +52,6 @@ def unfiltered() -> RunResult:
 def _col(result: RunResult, name: str) -> np.ndarray:
     c = result.columns
     return c.data[: c.rows, c.index(name)]
-
-
-def _band_std(x: np.ndarray, dt_s: float, band: tuple[float, float]) -> float:
-    """Standard deviation of the part of ``x`` in ``band`` [rad/s] (FFT band-pass)."""
-    x = x - x.mean()
-    spectrum = np.fft.rfft(x)
-    omega = 2.0 * math.pi * np.fft.rfftfreq(x.size, dt_s)
-    spectrum[(omega < band[0]) | (omega > band[1])] = 0.0
-    return float(np.std(np.fft.irfft(spectrum, x.size)))
 
 
 def _heading_error_deg(result: RunResult, against: np.ndarray) -> np.ndarray:
@@ -100,8 +91,8 @@ def test_rudder_does_not_respond_to_wave_frequency_motion(filtered: RunResult, u
     dt = filtered.config.sample_time_s
     t = _col(filtered, "t_s")
     engaged = t >= 20.0
-    with_filter = _band_std(_col(filtered, "azimuth_main_propeller_rad")[engaged], dt, WAVE_BAND_RAD_S)
-    without = _band_std(_col(unfiltered, "azimuth_main_propeller_rad")[engaged], dt, WAVE_BAND_RAD_S)
+    with_filter = band_std(_col(filtered, "azimuth_main_propeller_rad")[engaged], dt, WAVE_BAND_RAD_S)
+    without = band_std(_col(unfiltered, "azimuth_main_propeller_rad")[engaged], dt, WAVE_BAND_RAD_S)
     assert without > math.radians(0.5)  # without the filter the rudder works at the wave frequency
     assert with_filter < without / 3.0  # measured ≈ 4× less WF rudder motion with the filter
     # ... while the low-frequency heading estimate stays close to the true LF heading
