@@ -62,7 +62,7 @@ from typing import Any
 import numpy as np
 
 from dpcontrol.runtime.step import Mode, StepOutput
-from dpcontrol.runtime.thrusters import RELATIVE_FLOOR, RELATIVE_MISMATCH
+from dpcontrol.runtime.thrusters import mismatch_limit_n
 from sim_plant.bench.lockstep import LockstepSimulation, controller_mapping
 from sim_plant.bench.report import expected_detection, first_raise
 from sim_plant.faults import GNSS_FAULTS, GYRO_FAULTS, PROTOCOL_FAULTS, THRUSTER_FAULTS, Fault
@@ -230,7 +230,7 @@ class _Soak:
                 health = controller.monitor._health[i]
                 feedback = health.last_feedback
                 rating = health.spec.max_thrust_n
-                limit = min(fraction * rating, max(RELATIVE_MISMATCH * abs(health.expected_n), RELATIVE_FLOOR * rating))
+                limit = mismatch_limit_n(rating, health.expected_n, fraction)
                 if feedback is not None and abs(feedback.thrust_n - health.expected_n) > limit:
                     self.mismatch_s[k] = self.mismatch_s.get(k, 0.0) + dt
                     self.mismatch_first.setdefault(k, t_s)

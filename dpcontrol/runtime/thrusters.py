@@ -30,6 +30,13 @@ RELATIVE_MISMATCH = 0.5  # share of the expected thrust the delivered one may mi
 RELATIVE_FLOOR = 0.05  # below this share of the rating a drive's thrust is not judged [-]
 
 
+def mismatch_limit_n(rating_n: float, expected_n: float, fraction: float) -> float:
+    """How far a drive's delivered thrust may be from a healthy drive's ``expected_n`` [N]: ``fraction``
+    of its rating ``rating_n``, or at low load :data:`RELATIVE_MISMATCH` of the expected thrust, floored
+    at :data:`RELATIVE_FLOOR` of the rating."""
+    return min(fraction * rating_n, max(RELATIVE_MISMATCH * abs(expected_n), RELATIVE_FLOOR * rating_n))
+
+
 @dataclass(frozen=True)
 class ThrusterFeedback:
     """What a drive reports: delivered thrust [N], azimuth/rudder angle [rad], readiness."""
@@ -177,9 +184,7 @@ class ThrusterMonitor:
                     # what it should deliver, floored at RELATIVE_FLOOR of the rating: a drive delivering
                     # nothing (or pushing the wrong way) at 5–20 % load is a failure too.
                     error = abs(feedback.thrust_n - health.expected_n)
-                    limit_now = min(fraction * spec.max_thrust_n,
-                                    max(RELATIVE_MISMATCH * abs(health.expected_n),
-                                        RELATIVE_FLOOR * spec.max_thrust_n))
+                    limit_now = mismatch_limit_n(spec.max_thrust_n, health.expected_n, fraction)
                     if not math.isfinite(health.limit_n):
                         health.limit_n = limit_now
                     if dt_s > 0.0:
