@@ -93,9 +93,14 @@ def test_a_pty_nobody_reads_never_blocks_and_keeps_only_recent_data(serial_link:
     counters = serial_link.counters
     assert counters["backlog_flushes"] > 0 and counters["backlog_bytes_discarded"] > 100_000
     assert counters["bytes_written"] >= 2000 * len(group) - counters["backlog_bytes_discarded"] - 8192
+    # The kernel moves what the master wrote into the slave's line discipline asynchronously, so right
+    # after a burst the backlog check cannot see the last writes still in flight (measured once: 16 kB).
+    # In the emulator the next sample follows 0.1 s later and its check finds and discards them: do that.
+    time.sleep(0.1)
+    serial_link.send("gnss1", 2000 * 0.1, [FIX, STATS])
     stale = _read_all(serial_link.device_path)  # a daemon opening the port now gets ≤ ~1 kB of old data
     assert 0 < len(stale) <= 1024 + 2 * len(group)
-    assert gnss.counters["samples"] == 2000
+    assert gnss.counters["samples"] == 2001
 
 
 def test_unplug_removes_the_device_and_replug_brings_a_fresh_one(serial_link: SerialLink) -> None:
