@@ -142,6 +142,32 @@ class SteadyStateFilter:
     log_det_S: float
 
 
+def is_covariance(P: np.ndarray, tolerance: float = 1e-9) -> bool:
+    """Whether ``P`` (n, n) is a symmetric positive semidefinite covariance, judged scale-free.
+
+    A DP filter's covariance spans ~20 orders of magnitude (10⁻⁷ m² on a position, 10¹¹ N² on a bias
+    force), so an eigenvalue test on ``P`` itself sees rounding errors of ~10⁻¹⁶·λ_max as negative
+    eigenvalues. The test is made on the correlation matrix ``D^-½ P D^-½`` (D = diag P) instead, whose
+    eigenvalues lie in [0, n] whatever the units: ``P`` passes when it is symmetric to ``tolerance``
+    (relative), its diagonal is ≥ 0, and the correlation matrix's smallest eigenvalue is ≥ −``tolerance``.
+    """
+    if P.ndim != 2 or P.shape[0] != P.shape[1] or not np.all(np.isfinite(P)):
+        return False
+    if not np.allclose(P, P.T, rtol=tolerance, atol=0.0):
+        return False
+    d = np.diag(P)
+    if np.any(d < 0.0):
+        return False
+    positive = d > 0.0
+    # a zero variance needs zero covariances with every other state
+    if np.any(P[~positive][:, positive] != 0.0):
+        return False
+    scale = 1.0 / np.sqrt(d[positive])
+    sym = 0.5 * (P + P.T)[np.ix_(positive, positive)]
+    corr = sym * scale[:, None] * scale[None, :]
+    return bool(corr.size == 0 or np.linalg.eigvalsh(corr).min() >= -tolerance)
+
+
 def solve_prior_covariance(Phi: np.ndarray, H: np.ndarray, Qd: np.ndarray, R: np.ndarray) -> np.ndarray:
     """Stationary prior covariance P̄ of the filter DARE (seed 000 eq. (17a), discrete time).
 

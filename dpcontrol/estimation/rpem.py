@@ -31,7 +31,7 @@ import numpy as np
 
 from dpcontrol.estimation.config import WaveFilterConfig
 from dpcontrol.estimation.discretize import discretize, oscillator_discretization
-from dpcontrol.estimation.kalman import KalmanFilter, solve_prior_covariance
+from dpcontrol.estimation.kalman import KalmanFilter, is_covariance, solve_prior_covariance
 from dpcontrol.estimation.wave_filter import (
     _HEADING,
     _MASKS,
@@ -216,7 +216,7 @@ class RpemWaveFilter(_FrameFilter):
             raise ValueError("wave filter state: omega_hat_rad_s outside the RPEM range")
         if p_omega <= 0.0 or np.any(var <= 0.0) or not isinstance(steps, int) or steps < 0:
             raise ValueError("wave filter state: p_omega, innovation_variance must be > 0, steps an int >= 0")
-        if not np.allclose(P, P.T, rtol=1e-9, atol=0.0) or np.linalg.eigvalsh(0.5 * (P + P.T)).min() < 0.0:
+        if not is_covariance(P):
             raise ValueError("wave filter state: P must be symmetric positive semidefinite")
         self._set_omega(omega)
         self.filter.x = x

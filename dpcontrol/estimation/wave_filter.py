@@ -67,7 +67,7 @@ import numpy as np
 from dpcontrol.estimation.config import WaveFilterConfig
 from dpcontrol.estimation.design_model import DesignModel, StateIndex, dp_design_model
 from dpcontrol.estimation.discretize import discretize
-from dpcontrol.estimation.kalman import KalmanFilter, SteadyStateFilter, pattern_code, pattern_gains
+from dpcontrol.estimation.kalman import KalmanFilter, SteadyStateFilter, is_covariance, pattern_code, pattern_gains
 from dpcontrol.estimation.weighting import BandLikelihood, bayes_step, dwsg_step
 from dpcontrol.models.frames import ssa, ssa_array
 
@@ -667,7 +667,10 @@ class BankWaveFilter(_FrameFilter):
         elif band is not None:
             band.restart()   # an older state: statistics rebuild while the restored weights hold
         self.x[:] = x
-        self.p[:] = p / p.sum()
+        # weights saved by a running bank sum to 1 within rounding: keep them bit for bit (a restart is
+        # then exactly the run that did not stop); renormalise only what was not normalised
+        total = float(p.sum())
+        self.p[:] = p if abs(total - 1.0) <= 1e-12 else p / total
         if log_w is None:
             log_w = np.log(np.maximum(self.p, 1e-300))
             log_w = np.maximum(log_w - log_w.max(), self._log_floor)
@@ -772,7 +775,7 @@ class TimeVaryingWaveFilter(_FrameFilter):
         n = self.index.n
         x = _finite_array(state.get("x"), (n,), "x")
         P = _finite_array(state.get("P"), (n, n), "P")
-        if not np.allclose(P, P.T, rtol=1e-9, atol=0.0) or np.linalg.eigvalsh(0.5 * (P + P.T)).min() < 0.0:
+        if not is_covariance(P):
             raise ValueError("wave filter state: P must be symmetric positive semidefinite")
         self.filter.x = x
         self.filter.P = 0.5 * (P + P.T)

@@ -14,6 +14,7 @@ from dpcontrol.estimation.discretize import discretize
 from dpcontrol.estimation.kalman import (
     PATTERNS,
     KalmanFilter,
+    is_covariance,
     pattern_code,
     pattern_gains,
     solve_prior_covariance,
@@ -231,3 +232,32 @@ def test_apply_floor_is_relative_to_the_leader() -> None:
     p = np.array([0.999999999, 1e-12, 1e-9])
     apply_floor(p, 1e-4)
     assert math.isclose(p.sum(), 1.0) and np.all(p[1:] >= 1e-4 * p[0] * (1 - 1e-12))
+
+
+def test_is_covariance_judges_a_badly_scaled_covariance_by_its_correlations() -> None:
+    """A DP covariance spans 10⁻⁷ … 10¹² (position m², bias N²): rounding makes its smallest eigenvalue
+    slightly negative although it is a covariance; an indefinite or asymmetric matrix is still refused."""
+    rng = np.random.default_rng(3)
+    A = rng.standard_normal((15, 15))
+    corr = A @ A.T + 1e-6 * np.eye(15)
+    scale = np.logspace(-4, 6, 15)                       # standard deviations 1e-4 … 1e6
+    P = corr * scale[:, None] * scale[None, :]
+    P = 0.5 * (P + P.T)
+    P_rounded = P.copy()
+    P_rounded[0, 0] -= 1e-12 * P[0, 0]                    # rounding-sized perturbation
+    assert is_covariance(P) and is_covariance(P_rounded)
+    indefinite = P.copy()
+    indefinite[0, 1] = indefinite[1, 0] = 1.5 * math.sqrt(P[0, 0] * P[1, 1])   # |correlation| > 1
+    assert not is_covariance(indefinite)
+    asymmetric = P.copy()
+    asymmetric[0, 1] *= 1.01
+    assert not is_covariance(asymmetric)
+    negative_variance = P.copy()
+    negative_variance[2, 2] = -1.0
+    assert not is_covariance(negative_variance)
+    zero_row = P.copy()
+    zero_row[3, :] = zero_row[:, 3] = 0.0
+    assert is_covariance(zero_row)
+    zero_row[3, 4] = zero_row[4, 3] = 1.0                 # covariance with a zero-variance state
+    assert not is_covariance(zero_row)
+    assert not is_covariance(np.full((3, 3), np.nan))
