@@ -40,6 +40,7 @@ from sim_plant.environment.current import CurrentModel
 from sim_plant.environment.waves import CALM, WaveEnvironment, WaveSample
 from sim_plant.environment.wind import WindModel
 from sim_plant.faults import THRUSTER_FAULTS, Fault
+from sim_plant.kernels import NO_DRIVE, plant_substep
 from sim_plant.scenario import Scenario
 from sim_plant.sensors import GnssSensor, GnssSpec, GyroSensor, SensorSample
 from sim_plant.thrusters import ThrusterCommand, ThrusterDrives, ThrusterFeedback
@@ -154,10 +155,10 @@ class Plant:
         self.course_keeping = isinstance(self.model, ManoeuvringVesselModel)
         self._h = 1.0 / scenario.plant.rate_hz
         self.drives = ThrusterDrives(vessel.thrusters, scenario.plant.thruster_timeout_s)
-        self._rudder = -1
+        self._rudder = NO_DRIVE
         if self.course_keeping:
             rudders = [i for i, t in enumerate(vessel.thrusters) if t.kind == "propeller_rudder"]
-            self._rudder = rudders[0] if rudders else -1
+            self._rudder = rudders[0] if rudders else NO_DRIVE
 
         def rng(*keys: int) -> np.random.Generator:
             return np.random.default_rng([seed, *keys])
@@ -192,7 +193,9 @@ class Plant:
         u0 = init.surge_mps
         if self.course_keeping:
             u0 = init.surge_mps + c * cn + s * ce  # speed through the water is u0
-        self._x = [init.north_m, init.east_m, ssa(init.heading_rad), u0, init.sway_mps, init.yaw_rate_radps]
+        # the LF state [north_m, east_m, psi_rad, u_mps, v_mps, r_radps], advanced in place by the substep kernel
+        self._x = np.array([init.north_m, init.east_m, ssa(init.heading_rad), u0, init.sway_mps,
+                            init.yaw_rate_radps], dtype=float)
         self._t = 0.0
         self._k = 0
         self._thruster_faults: list[Fault] = [f for f in scenario.faults if f.kind in THRUSTER_FAULTS]
@@ -261,24 +264,23 @@ class Plant:
         self._truth_cache = None
 
     def _substep(self, t: float, h: float) -> None:
-        x = self._x
-        model = self.model
         if self._mass_varies:
             self._update_mass(t)
-        tx, ty, tn = self.drives.force_b(self._rudder)
         if t >= self._env_next - _TOL_S:
             # wind gusts, wave drift and current vary slowly: refresh them on their own grid
             wave = self._waves_at(t)
-            wx, wy, wn = self.wind.force_b(t, x[2], x[3], x[4])
+            _, _, psi, u, v, _ = self._x.tolist()
+            wx, wy, wn = self.wind.force_b(t, psi, u, v)
             dx, dy, dn = wave.drift_b
             self._tau_env = (wx + dx, wy + dy, wn + dn)
             self._current_ned = self.current.velocity_ned(t)
             self._env_next = (math.floor(t / self._env_period + _TOL_S) + 1) * self._env_period
         ex, ey, en = self._tau_env
         cn, ce = self._current_ned
-        rudder = self.drives.angle[self._rudder] if self._rudder >= 0 else 0.0
-        model.step(x, h, tx + ex, ty + ey, tn + en, cn, ce, rudder)
-        self.drives.update(t, h)
+        model = self.model
+        # thruster force at t, RK4 step of the vessel, drives over [t, t + h]: one kernel call
+        plant_substep(self._x, model.kind, model.params, t, h, ex, ey, en, cn, ce, *self.drives.arrays,
+                      self._rudder)
         self._wave_cache_t = math.nan
 
     def _update_mass(self, t: float) -> None:
@@ -297,11 +299,11 @@ class Plant:
 
     def _waves_at(self, t: float) -> WaveSample:
         if t != self._wave_cache_t:
-            x = self._x
-            c = math.cos(x[2])
-            s = math.sin(x[2])
-            self._wave_cache = self.waves.evaluate(t, x[0], x[1], x[2], north_rate_mps=c * x[3] - s * x[4],
-                                                   east_rate_mps=s * x[3] + c * x[4])
+            north, east, psi, u, v, _ = self._x.tolist()
+            c = math.cos(psi)
+            s = math.sin(psi)
+            self._wave_cache = self.waves.evaluate(t, north, east, psi, north_rate_mps=c * u - s * v,
+                                                   east_rate_mps=s * u + c * v)
             self._wave_cache_t = t
         return self._wave_cache
 
@@ -327,15 +329,14 @@ class Plant:
         if not due:
             self._next_event = self._find_next_event()
             return
-        x = self._x
+        north, east, psi, _, _, r = self._x.tolist()
         wave = self._waves_at(t)
-        psi = x[2]
         c = math.cos(psi)
         s = math.sin(psi)
-        north_total = x[0] + c * wave.surge_m - s * wave.sway_m
-        east_total = x[1] + s * wave.surge_m + c * wave.sway_m
+        north_total = north + c * wave.surge_m - s * wave.sway_m
+        east_total = east + s * wave.surge_m + c * wave.sway_m
         heading_total = ssa(psi + wave.yaw_rad)
-        rate_total = x[5] + wave.yaw_rate_radps
+        rate_total = r + wave.yaw_rate_radps
         for sensor in due:
             while sensor.next_time_s <= t + _TOL_S:
                 if isinstance(sensor, GnssSensor):
@@ -351,14 +352,14 @@ class Plant:
         if self._truth_cache is not None:
             return self._truth_cache
         t = self._t
-        x = self._x
+        x = self._x.tolist()
         wave = self._waves_at(t)
         psi = x[2]
         c = math.cos(psi)
         s = math.sin(psi)
         tau = self.drives.force_b(self._rudder)
         if self._rudder >= 0:
-            rudder = self.drives.angle[self._rudder]
+            rudder = float(self.drives.angle[self._rudder])
             dv = self.model.derivatives  # type: ignore[union-attr]
             length = self.scenario.vessel.length_m
             speed2 = self.model.surge_speed_mps ** 2  # type: ignore[union-attr]
@@ -412,5 +413,5 @@ class Plant:
 
     def state(self) -> tuple[float, float, float, float, float, float]:
         """Raw LF state (north_m, east_m, psi_rad, u_mps, v_mps, r_radps)."""
-        x = self._x
-        return x[0], x[1], x[2], x[3], x[4], x[5]
+        north, east, psi, u, v, r = self._x.tolist()
+        return north, east, psi, u, v, r

@@ -21,8 +21,10 @@ Forces in body axes (x forward, y starboard, at (x_m, y_m)): F = T (cos α, sin 
 angle or the azimuth; a ``propeller_rudder`` gives F = (T, T · rudder_lift_per_rad · δ) for T > 0 and
 (T, 0) astern; moment N = x F_y − y F_x. τ_act_b is the sum.
 
-Plain floats in lists, no numpy: with ≤ 8 drives this is faster than array calls and allocates
-nothing per substep.
+The drive states and constants are rows of small arrays, so that the plant's substep kernel
+(:func:`sim_plant.kernels.plant_substep`) moves them together with the vessel in one call; the
+arithmetic is in :func:`~sim_plant.kernels.drives_update` and :func:`~sim_plant.kernels.drives_force`.
+Commands are validated here, in Python.
 """
 
 from __future__ import annotations
@@ -31,8 +33,39 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
+import numpy as np
+
 from dpcontrol.models.frames import ssa
 from dpcontrol.models.thrusters import ThrusterSpec
+from sim_plant.kernels import (
+    AZIMUTH,
+    B_ALPHA_H,
+    B_LOST,
+    B_TIMEOUT,
+    DRIVE_BANK,
+    DRIVE_CODES,
+    DRIVE_CONSTANTS,
+    DRIVE_STATE,
+    K_FAILURE,
+    K_KIND,
+    NO_DRIVE,
+    NO_FAILURE,
+    NOT_READY,
+    PROPELLER,
+    RUDDER,
+    S_ANGLE,
+    S_COMMAND_TIME,
+    S_TARGET_ANGLE,
+    S_TARGET_THRUST,
+    S_THRUST,
+    STUCK,
+    TUNNEL,
+    WRONG_SIGN,
+    ZERO,
+    drives_feedback,
+    drives_force,
+    drives_update,
+)
 
 FAILURES: tuple[str, ...] = ("stuck", "zero", "wrong_sign", "not_ready")
 
@@ -82,12 +115,12 @@ class ThrusterFeedback:
     ready: bool
 
 
-_TUNNEL, _AZIMUTH, _PROPELLER, _RUDDER = 0, 1, 2, 3
+_KIND = {"tunnel": TUNNEL, "azimuth": AZIMUTH, "propeller": PROPELLER, "propeller_rudder": RUDDER}
+_FAILURE_CODE = {None: NO_FAILURE, "stuck": STUCK, "zero": ZERO, "wrong_sign": WRONG_SIGN, "not_ready": NOT_READY}
 
 
 def _finite_number(value: object) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-_KIND = {"tunnel": _TUNNEL, "azimuth": _AZIMUTH, "propeller": _PROPELLER, "propeller_rudder": _RUDDER}
 
 
 class ThrusterDrives:
@@ -109,28 +142,44 @@ class ThrusterDrives:
         self.timeout_s = timeout_s
         n = len(self.specs)
         self._kind = [_KIND[s.kind] for s in self.specs]
-        self._tau = [s.time_constant_s for s in self.specs]
-        self._rate = [s.thrust_rate_limit_nps for s in self.specs]
-        self._max = [s.max_thrust_n for s in self.specs]
-        self._min = [s.min_thrust_n for s in self.specs]
-        self._az_rate = [math.inf if s.azimuth_rate_limit_radps is None else s.azimuth_rate_limit_radps
-                         for s in self.specs]
-        self._rudder_max = [math.inf if s.rudder_max_angle_rad is None else s.rudder_max_angle_rad
+        self._max = [float(s.max_thrust_n) for s in self.specs]
+        self._min = [float(s.min_thrust_n) for s in self.specs]
+        self._rudder_max = [math.inf if s.rudder_max_angle_rad is None else float(s.rudder_max_angle_rad)
                             for s in self.specs]
-        # state
-        self.thrust = [0.0] * n  # drive state (what the drive produces before failures)
-        self.angle = [s.angle_rad if _KIND[s.kind] in (_TUNNEL, _PROPELLER) else 0.0 for s in self.specs]
-        self._target_thrust = [0.0] * n
-        self._target_angle = list(self.angle)
-        self._t_cmd = [-math.inf] * n  # no command yet: ramp to (stay at) zero
-        self._lost = False
+        # The kernels' arrays (layouts in sim_plant.kernels): constants, state, integer codes, bank scalars
+        const = np.empty((len(DRIVE_CONSTANTS), n))
+        const[:] = [[s.x_m for s in self.specs], [s.y_m for s in self.specs],
+                    [math.cos(s.angle_rad) for s in self.specs], [math.sin(s.angle_rad) for s in self.specs],
+                    [s.rudder_lift_per_rad for s in self.specs], [s.time_constant_s for s in self.specs],
+                    [s.thrust_rate_limit_nps for s in self.specs],
+                    [math.inf if s.azimuth_rate_limit_radps is None else s.azimuth_rate_limit_radps
+                     for s in self.specs]]
+        self._const = const
+        self._state = np.zeros((len(DRIVE_STATE), n))
+        self._codes = np.zeros((len(DRIVE_CODES), n), dtype=np.int64)
+        self._codes[K_KIND] = self._kind
+        self._bank = np.zeros(len(DRIVE_BANK))  # not lost
+        self._bank[B_ALPHA_H] = -1.0  # no substep yet
+        self._bank[B_TIMEOUT] = timeout_s
+        self.thrust = self._state[S_THRUST]  # drive state (what the drive produces before failures) [N]
+        self.angle = self._state[S_ANGLE]  # actual azimuth / rudder / fixed angle [rad]
+        self.angle[:] = [s.angle_rad if _KIND[s.kind] in (TUNNEL, PROPELLER) else 0.0 for s in self.specs]
+        self._state[S_TARGET_ANGLE] = self.angle
+        self._state[S_COMMAND_TIME] = -math.inf  # no command yet: ramp to (stay at) zero
         self.failure: list[str | None] = [None] * n
-        self._alpha_h = -1.0
-        self._alpha = [0.0] * n
-        self._any_failure = False  # no failure anywhere: delivered thrust = drive thrust (the usual case)
-        # per drive, the constants of force_b in one tuple (one unpacking instead of five list look-ups)
-        self._geometry = [(i, _KIND[s.kind], s.x_m, s.y_m, math.cos(s.angle_rad), math.sin(s.angle_rad),
-                           s.rudder_lift_per_rad) for i, s in enumerate(self.specs)]
+        self._ready = [True] * n
+        self._feedback = np.empty((2, n))
+        self.arrays = (self._const, self._state, self._codes, self._bank)
+        """The kernels' drive arguments ``(const, state, codes, bank)`` (state and bank change in place)."""
+        # memoryviews for the writes of command(): a float item write costs half a numpy one
+        self._command_rows = tuple(memoryview(self._state[row])
+                                   for row in (S_TARGET_THRUST, S_TARGET_ANGLE, S_COMMAND_TIME))
+        self._bank_view = memoryview(self._bank)
+
+    @property
+    def _target_thrust(self) -> list[float]:
+        """Saturated thrust commands [N] (a copy)."""
+        return self._state[S_TARGET_THRUST].tolist()
 
     # -- inputs ----------------------------------------------------------------------------------
     def command(self, t_s: float, commands: Mapping[str, ThrusterCommand]) -> None:
@@ -147,138 +196,97 @@ class ThrusterDrives:
         problems = []
         checked: list[tuple[int, float, float | None, bool]] = []
         index = self._index
+        isfinite = math.isfinite
         for name, cmd in commands.items():
             i = index.get(name)
-            if i is None:
-                problems.append(f"unknown thruster {name!r} (known: {', '.join(self.names)})")
-                continue
-            if type(cmd) is not ThrusterCommand:
-                problems.append(f"{name}: expected a ThrusterCommand, got {type(cmd).__name__}")
-                continue
-            thrust = cmd.thrust_n
-            az = cmd.azimuth_rad
-            # exact float / bool types are the common case; anything else gets the full check
-            if not (type(thrust) is float and math.isfinite(thrust)) and not _finite_number(thrust):
-                problems.append(f"{name}: thrust_n must be a finite number, got {thrust!r}")
-                continue
-            if az is not None and not (type(az) is float and math.isfinite(az)) and not _finite_number(az):
-                problems.append(f"{name}: azimuth_rad must be a finite number or None, got {az!r}")
-                continue
-            if type(cmd.enabled) is not bool:
-                problems.append(f"{name}: enabled must be true or false, got {cmd.enabled!r}")
-                continue
-            checked.append((i, float(thrust), None if az is None else float(az), cmd.enabled))
+            if i is not None and type(cmd) is ThrusterCommand:
+                thrust, az, enabled = cmd.thrust_n, cmd.azimuth_rad, cmd.enabled
+                # exact float / bool types are the common case; anything else gets the full check
+                if (type(thrust) is float and isfinite(thrust) and type(enabled) is bool
+                        and (az is None or (type(az) is float and isfinite(az)))):
+                    checked.append((i, thrust, az, enabled))
+                    continue
+            problem = self._problem(name, cmd)
+            if problem is not None:
+                problems.append(problem)
+            else:  # other number types (int, numpy floats)
+                az = cmd.azimuth_rad
+                checked.append((index[name], float(cmd.thrust_n), None if az is None else float(az), cmd.enabled))
         if problems:
             raise CommandError("thruster command rejected: " + "; ".join(problems))
+        target_thrust, target_angle, command_time = self._command_rows
+        low, high, kinds, rudder_max = self._min, self._max, self._kind, self._rudder_max
+        t = float(t_s)
         for i, thrust, az, enabled in checked:
-            self._target_thrust[i] = min(self._max[i], max(self._min[i], thrust)) if enabled else 0.0
-            kind = self._kind[i]
-            if az is not None and kind == _AZIMUTH:
-                self._target_angle[i] = ssa(az)
-            elif az is not None and kind == _RUDDER:
-                self._target_angle[i] = min(self._rudder_max[i], max(-self._rudder_max[i], az))
-            self._t_cmd[i] = t_s
-        self._lost = False
+            target_thrust[i] = min(high[i], max(low[i], thrust)) if enabled else 0.0
+            if az is not None:
+                kind = kinds[i]
+                if kind == AZIMUTH:
+                    target_angle[i] = ssa(az)
+                elif kind == RUDDER:
+                    target_angle[i] = min(rudder_max[i], max(-rudder_max[i], az))
+            command_time[i] = t
+        self._bank_view[B_LOST] = 0.0
+
+    def _problem(self, name: str, cmd: object) -> str | None:
+        """What is wrong with one thruster's command (None: nothing)."""
+        if name not in self._index:
+            return f"unknown thruster {name!r} (known: {', '.join(self.names)})"
+        if type(cmd) is not ThrusterCommand:
+            return f"{name}: expected a ThrusterCommand, got {type(cmd).__name__}"
+        if not _finite_number(cmd.thrust_n):
+            return f"{name}: thrust_n must be a finite number, got {cmd.thrust_n!r}"
+        if cmd.azimuth_rad is not None and not _finite_number(cmd.azimuth_rad):
+            return f"{name}: azimuth_rad must be a finite number or None, got {cmd.azimuth_rad!r}"
+        if type(cmd.enabled) is not bool:
+            return f"{name}: enabled must be true or false, got {cmd.enabled!r}"
+        return None
 
     def command_lost(self, t_s: float) -> None:
         """The controller disappeared (liveliness lost): every drive ramps to zero until the next
         :meth:`command`."""
         del t_s
-        self._lost = True
+        self._bank_view[B_LOST] = 1.0
 
     def set_failure(self, name: str, failure: str | None) -> None:
         """Inject (``failure`` in :data:`FAILURES`) or clear (None) a failure on one drive."""
         if failure is not None and failure not in FAILURES:
             raise ValueError(f"unknown thruster failure {failure!r}")
-        self.failure[self._index[name]] = failure
-        self._any_failure = any(f is not None for f in self.failure)
+        i = self._index[name]
+        self.failure[i] = failure
+        self._codes[K_FAILURE, i] = _FAILURE_CODE[failure]
+        self._ready[i] = failure != "not_ready"
 
     # -- dynamics --------------------------------------------------------------------------------
     def update(self, t_s: float, h_s: float) -> None:
-        """Advance every drive over the substep [t_s, t_s + h_s]."""
-        if abs(h_s - self._alpha_h) > 1e-12 * h_s:  # substeps differ only by rounding most of the time
-            self._alpha = [-math.expm1(-h_s / tau) for tau in self._tau]
-            self._alpha_h = h_s
-        lost = self._lost
-        timeout = self.timeout_s
-        for i in range(len(self._kind)):
-            failure = self.failure[i]
-            if failure == "stuck":
-                continue
-            thrust = self.thrust[i]
-            if failure == "not_ready" or lost or t_s - self._t_cmd[i] > timeout:
-                target = 0.0
-                hold_angle = True
-            else:
-                target = self._target_thrust[i]
-                hold_angle = False
-            delta = (target - thrust) * self._alpha[i]
-            limit = self._rate[i] * h_s
-            if delta > limit:
-                delta = limit
-            elif delta < -limit:
-                delta = -limit
-            self.thrust[i] = thrust + delta
-            kind = self._kind[i]
-            if hold_angle or kind in (_TUNNEL, _PROPELLER):
-                continue
-            angle = self.angle[i]
-            err = ssa(self._target_angle[i] - angle) if kind == _AZIMUTH else self._target_angle[i] - angle
-            step = self._az_rate[i] * h_s
-            if err > step:
-                err = step
-            elif err < -step:
-                err = -step
-            self.angle[i] = ssa(angle + err) if kind == _AZIMUTH else angle + err
+        """Advance every drive over the substep [t_s, t_s + h_s] (:func:`sim_plant.kernels.drives_update`;
+        the plant's substep kernel calls it with the vessel step)."""
+        drives_update(self._const, self._state, self._codes, self._bank, t_s, h_s)
 
     def delivered_thrust(self, i: int) -> float:
         """Thrust actually delivered by drive ``i`` after failures [N]."""
         failure = self.failure[i]
         if failure == "zero":
             return 0.0
-        if failure == "wrong_sign":
-            return -self.thrust[i]
-        return self.thrust[i]
+        thrust = float(self.thrust[i])
+        return -thrust if failure == "wrong_sign" else thrust
 
-    def force_b(self, skip: int = -1) -> tuple[float, float, float]:
-        """τ_act_b = Σ forces and moments of the delivered thrusts [N, N, N·m].
+    def force_b(self, skip: int = NO_DRIVE) -> tuple[float, float, float]:
+        """τ_act_b = Σ forces and moments of the delivered thrusts [N, N, N·m]
+        (:func:`sim_plant.kernels.drives_force`).
 
         ``skip`` leaves one drive out (the mariner's rudder, whose force the manoeuvring model
         takes from its hydrodynamic derivatives).
         """
-        fx_sum = fy_sum = n_sum = 0.0
-        thrusts = self.thrust
-        angles = self.angle
-        failed = self._any_failure
-        for i, kind, x, y, fixed_cos, fixed_sin, lift in self._geometry:
-            if i == skip:
-                continue
-            t = self.delivered_thrust(i) if failed else thrusts[i]
-            if t == 0.0:
-                continue
-            if kind == _AZIMUTH:
-                a = angles[i]
-                fx = t * math.cos(a)
-                fy = t * math.sin(a)
-            elif kind == _RUDDER:
-                fx = t
-                fy = t * lift * angles[i] if t > 0.0 else 0.0
-            else:
-                fx = t * fixed_cos
-                fy = t * fixed_sin
-            fx_sum += fx
-            fy_sum += fy
-            n_sum += x * fy - y * fx
-        return fx_sum, fy_sum, n_sum
+        return drives_force(self._const, self._state, self._codes, skip)
 
     def feedback(self) -> list[ThrusterFeedback]:
         """Per-drive feedback (delivered thrust, actual angle, ready)."""
-        if not self._any_failure:
-            angles = self.angle
-            return [ThrusterFeedback(name, thrust, ssa(angles[i]), True)
-                    for i, (name, thrust) in enumerate(zip(self.names, self.thrust, strict=True))]
-        return [ThrusterFeedback(name, self.delivered_thrust(i), ssa(self.angle[i]), self.failure[i] != "not_ready")
-                for i, name in enumerate(self.names)]
+        out = self._feedback
+        drives_feedback(self._state, self._codes, out)
+        thrusts, angles = out.tolist()
+        return [ThrusterFeedback(name, thrust, angle, ready)
+                for name, thrust, angle, ready in zip(self.names, thrusts, angles, self._ready, strict=True)]
 
     def index(self, name: str) -> int:
         return self._index[name]

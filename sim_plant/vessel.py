@@ -35,50 +35,65 @@ from the manoeuvring derivatives (prime system, nondimensionalised with U = |ν_
 — the linear model M ν̇ + N(u0) ν = b δ of Chislett & Strøm-Tejsen (see
 :mod:`sim_plant.vessel_data`). Environmental and non-rudder thruster forces are added dimensionally.
 
-Both models integrate with classical RK4 at the plant rate, in plain floats (no numpy, no
-allocation except the small tuples of the four stages): the derivative is a closure over the
-current parameters, rebuilt when they change.
+Both models integrate with classical RK4 at the plant rate in compiled kernels
+(:mod:`sim_plant.kernels`: :func:`~sim_plant.kernels.vessel_derivative`,
+:func:`~sim_plant.kernels.rk4_step`); a model holds its parameters as one array (``params``, the layout
+of :data:`~sim_plant.kernels.DP_PARAMETERS` or :data:`~sim_plant.kernels.MANOEUVRING_PARAMETERS`),
+rebuilt when they change.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 
 import numpy as np
 
-from dpcontrol.models.frames import ssa
-from dpcontrol.models.vessels import VesselData, rigid_body_mass_matrix
+from dpcontrol.models.vessels import VesselData
 from sim_plant.environment.rao import HullDimensions
 from sim_plant.environment.wind import BLENDERMANN_TYPES, WindCoefficients
+from sim_plant.kernels import (
+    DP_MODEL,
+    DP_PARAMETERS,
+    L_ADDED,
+    L_DAMPING,
+    L_DRAFT,
+    L_IZ,
+    L_QUAD,
+    LOADING_VALUES,
+    MANOEUVRING_MODEL,
+    dp_parameters,
+    rk4_step,
+    vessel_derivative,
+)
 from sim_plant.vessel_data import ManoeuvringDerivatives, PlantVesselExtras, extras_for
-
-Derivative = Callable[..., tuple[float, float, float, float, float, float]]
-
-
-def _inverse3(m: np.ndarray) -> list[float]:
-    inv = np.linalg.inv(m)
-    return [float(v) for v in inv.ravel()]
 
 
 class _ModelBase:
-    """Shared RK4 stepping and properties."""
+    """Shared RK4 stepping and properties.
+
+    Attributes
+    ----------
+    kind : int
+        :data:`~sim_plant.kernels.DP_MODEL` or :data:`~sim_plant.kernels.MANOEUVRING_MODEL` (the kernels'
+        ``model`` argument).
+    params : ndarray
+        The model's parameters in the kernels' layout (replaced, not modified, when they change).
+    """
 
     vessel: VesselData
     extras: PlantVesselExtras
     mass_factor: float
-    _f: Derivative
+    kind: int
+    params: np.ndarray
 
-    def step(self, x: list[float], h_s: float, tau_x_n: float, tau_y_n: float, tau_n_nm: float,  # noqa: PLR0917
-             current_north_mps: float, current_east_mps: float, rudder_rad: float = 0.0) -> None:
-        """One classical RK4 step of length ``h_s`` with inputs held constant (ZOH), in place.
-
-        Plain positional floats on purpose: this runs tens of thousands of times per simulated hour
-        and keyword passing or packing costs a measurable share of it.
+    def step(self, x: list[float] | np.ndarray, h_s: float, tau_x_n: float, tau_y_n: float,  # noqa: PLR0917
+             tau_n_nm: float, current_north_mps: float, current_east_mps: float, rudder_rad: float = 0.0) -> None:
+        """One classical RK4 step of length ``h_s`` with inputs held constant (ZOH), in place
+        (:func:`sim_plant.kernels.rk4_step`; the plant calls the kernel with its own state array).
 
         Parameters
         ----------
-        x : list of float, length 6
+        x : list of float or ndarray, length 6
             State [north_m, east_m, psi_rad, u_mps, v_mps, r_radps]; ψ is wrapped with ssa after
             the step.
         h_s : float
@@ -90,28 +105,17 @@ class _ModelBase:
         rudder_rad : float
             Rudder angle for the manoeuvring model (ignored by the DP model).
         """
-        f = self._f
-        n, e, p, u, v, r = x
-        a = (tau_x_n, tau_y_n, tau_n_nm, current_north_mps, current_east_mps, rudder_rad)
-        k1 = f(p, u, v, r, *a)
-        h2 = 0.5 * h_s
-        k2 = f(p + h2 * k1[2], u + h2 * k1[3], v + h2 * k1[4], r + h2 * k1[5], *a)
-        k3 = f(p + h2 * k2[2], u + h2 * k2[3], v + h2 * k2[4], r + h2 * k2[5], *a)
-        k4 = f(p + h_s * k3[2], u + h_s * k3[3], v + h_s * k3[4], r + h_s * k3[5], *a)
-        h6 = h_s / 6.0
-        x[0] = n + h6 * (k1[0] + 2.0 * (k2[0] + k3[0]) + k4[0])
-        x[1] = e + h6 * (k1[1] + 2.0 * (k2[1] + k3[1]) + k4[1])
-        x[2] = ssa(p + h6 * (k1[2] + 2.0 * (k2[2] + k3[2]) + k4[2]))
-        x[3] = u + h6 * (k1[3] + 2.0 * (k2[3] + k3[3]) + k4[3])
-        x[4] = v + h6 * (k1[4] + 2.0 * (k2[4] + k3[4]) + k4[4])
-        x[5] = r + h6 * (k1[5] + 2.0 * (k2[5] + k3[5]) + k4[5])
+        state = np.array(x, dtype=float)
+        rk4_step(state, self.kind, self.params, h_s, tau_x_n, tau_y_n, tau_n_nm, current_north_mps,
+                 current_east_mps, rudder_rad)
+        x[:] = state.tolist()
 
     def derivative(self, x: list[float], tau_b: tuple[float, float, float] = (0.0, 0.0, 0.0),
                    current_ned: tuple[float, float] = (0.0, 0.0), rudder_rad: float = 0.0
                    ) -> tuple[float, float, float, float, float, float]:
-        """ẋ for a state (tests and diagnostics)."""
-        return self._f(x[2], x[3], x[4], x[5], tau_b[0], tau_b[1], tau_b[2], current_ned[0], current_ned[1],
-                       rudder_rad)
+        """ẋ for a state (tests and diagnostics; :func:`sim_plant.kernels.vessel_derivative`)."""
+        return vessel_derivative(self.kind, self.params, x[2], x[3], x[4], x[5], tau_b[0], tau_b[1], tau_b[2],
+                                 current_ned[0], current_ned[1], rudder_rad)
 
 
 class DpVesselModel(_ModelBase):
@@ -124,9 +128,24 @@ class DpVesselModel(_ModelBase):
         Plant-only data (default: :func:`sim_plant.vessel_data.extras_for`).
     """
 
+    kind = DP_MODEL
+
     def __init__(self, vessel: VesselData, extras: PlantVesselExtras | None = None) -> None:
         self.vessel = vessel
         self.extras = extras if extras is not None else extras_for(vessel)
+        base = _loading_values(vessel, self.extras.wind_type)
+        loaded = self.extras.loaded
+        if loaded is not None:
+            # ballast values a and full-load differences b − a: a rebuild (every 1e-4 of mass in a 12 h
+            # offloading) is one a + s (b − a) and one kernel call
+            full = _loading_values(loaded, self.extras.loaded_wind_type or self.extras.wind_type)
+            self._ballast_values, self._loading_delta = base, full - base
+        else:
+            # without a loaded variant the factor scales I_z, the draft and M_A, and nothing else
+            self._base_values = base
+            self._scaled = np.zeros(len(LOADING_VALUES), dtype=bool)
+            self._scaled[[L_IZ, L_DRAFT]] = True
+            self._scaled[L_ADDED:L_DAMPING] = True
         self.mass_factor = math.nan
         self.set_mass_factor(1.0)
 
@@ -141,45 +160,26 @@ class DpVesselModel(_ModelBase):
         mass = factor * base.mass_kg
         if loaded is not None:
             s = (factor - 1.0) / (loaded.mass_kg / base.mass_kg - 1.0)
-
-            def lerp(a: float | np.ndarray, b: float | np.ndarray) -> float | np.ndarray:
-                return a + s * (b - a)
-
-            iz = float(lerp(base.iz_kgm2, loaded.iz_kgm2))
-            xg = float(lerp(base.xg_m, loaded.xg_m))
-            m_a = np.asarray(lerp(base.added_mass_matrix, loaded.added_mass_matrix))
-            damping = np.asarray(lerp(base.damping_matrix, loaded.damping_matrix))
-            quad = np.asarray(lerp(base.quadratic_damping, loaded.quadratic_damping))
-            draft = float(lerp(base.draft_m, loaded.draft_m))
-            areas = (float(lerp(base.frontal_wind_area_m2, loaded.frontal_wind_area_m2)),
-                     float(lerp(base.lateral_wind_area_m2, loaded.lateral_wind_area_m2)))
-            ballast = BLENDERMANN_TYPES[self.extras.wind_type]
-            full = BLENDERMANN_TYPES[self.extras.loaded_wind_type or self.extras.wind_type]
-            blend = tuple(float(lerp(a, b)) for a, b in zip(ballast, full, strict=True))
+            values = self._ballast_values + s * self._loading_delta
         else:
-            iz = factor * base.iz_kgm2
-            xg = base.xg_m
-            m_a = factor * base.added_mass_matrix
-            damping = np.array(base.damping_matrix)
-            quad = np.array(base.quadratic_damping)
-            draft = factor * base.draft_m
-            areas = (base.frontal_wind_area_m2, base.lateral_wind_area_m2)
-            blend = BLENDERMANN_TYPES[self.extras.wind_type]
-        m_a = 0.5 * (m_a + m_a.T)
-        m_rb = rigid_body_mass_matrix(mass, iz, xg)
-        self.mass_matrix = m_rb + m_a
-        self.added_mass_matrix = m_a
-        self.damping_matrix = damping
-        self.quadratic_damping = quad
+            values = np.where(self._scaled, factor, 1.0) * self._base_values
+        added = np.empty((3, 3))
+        mass_matrix = np.empty((3, 3))
+        params = np.empty(len(DP_PARAMETERS))
+        dp_parameters(values, mass, added, mass_matrix, params)
+        iz, xg, draft, frontal, lateral, cdt, bow, stern, delta = values[:L_ADDED].tolist()
+        self.mass_matrix = mass_matrix
+        self.added_mass_matrix = added
+        self.damping_matrix = values[L_DAMPING:L_QUAD].reshape(3, 3)
+        self.quadratic_damping = values[L_QUAD:]
         self.mass_kg = mass
         self.iz_kgm2 = iz
         self.xg_m = xg
         self.mass_factor = factor
         self.hull = HullDimensions(base.length_m, max(base.beam_m, 1e-6), max(draft, 1e-6))
-        cdt, bow, stern, delta = blend
-        self.wind = WindCoefficients(cdt, bow, stern, delta, areas[0], areas[1], base.length_m,
+        self.wind = WindCoefficients(cdt, bow, stern, delta, frontal, lateral, base.length_m,
                                      self.extras.wind_centroid_frac * base.length_m)
-        self._f = _dp_derivative(mass, xg, m_a, damping, quad, minv=_inverse3(self.mass_matrix))
+        self.params = params
 
     @property
     def surge_mass_kg(self) -> float:
@@ -192,46 +192,12 @@ class DpVesselModel(_ModelBase):
         return float(0.5 * nu @ self.mass_matrix @ nu)
 
 
-def _dp_derivative(m: float, xg: float, m_a: np.ndarray, d: np.ndarray, quad: np.ndarray, *,
-                   minv: list[float]) -> Derivative:
-    a11, a12, a13 = (float(v) for v in m_a[0])
-    a21, a22, a23 = (float(v) for v in m_a[1])
-    a31, a32 = float(m_a[2, 0]), float(m_a[2, 1])
-    d11, d12, d13, d21, d22, d23, d31, d32, d33 = (float(v) for v in d.ravel())
-    q1, q2, q3 = (float(v) for v in quad)
-    i11, i12, i13, i21, i22, i23, i31, i32, i33 = minv
-    mxg = m * xg
-    cos = math.cos
-    sin = math.sin
-
-    def f(psi: float, u: float, v: float, r: float, tx: float, ty: float, tn: float, cn: float, ce: float,  # noqa: PLR0917
-          rudder: float) -> tuple[float, float, float, float, float, float]:
-        c = cos(psi)
-        s = sin(psi)
-        uc = c * cn + s * ce  # current in body axes
-        vc = c * ce - s * cn
-        ur = u - uc
-        vr = v - vc
-        # rigid-body Coriolis C_RB(ν)ν with p = M_RB ν (seed 002 eq. (4))
-        p2 = m * v + mxg * r
-        # added-mass Coriolis C_A(ν_r)ν_r with p_A = M_A ν_r
-        pa1 = a11 * ur + a12 * vr + a13 * r
-        pa2 = a21 * ur + a22 * vr + a23 * r
-        # M_A ν̇_c, ν̇_c = (r v_c, −r u_c, 0)
-        dc1 = r * vc
-        dc2 = -r * uc
-        f1 = (tx + p2 * r + pa2 * r - (d11 * ur + d12 * vr + d13 * r) - q1 * abs(ur) * ur
-              + a11 * dc1 + a12 * dc2)
-        f2 = (ty - m * u * r - pa1 * r - (d21 * ur + d22 * vr + d23 * r) - q2 * abs(vr) * vr
-              + a21 * dc1 + a22 * dc2)
-        f3 = (tn - (p2 * u - m * u * v) - (pa2 * ur - pa1 * vr) - (d31 * ur + d32 * vr + d33 * r)
-              - q3 * abs(r) * r + a31 * dc1 + a32 * dc2)
-        return (c * u - s * v, s * u + c * v, r,
-                i11 * f1 + i12 * f2 + i13 * f3,
-                i21 * f1 + i22 * f2 + i23 * f3,
-                i31 * f1 + i32 * f2 + i33 * f3)
-
-    return f
+def _loading_values(vessel: VesselData, wind_type: str) -> np.ndarray:
+    """What the loading of a DP model sets, as one array (layout :data:`sim_plant.kernels.LOADING_VALUES`)."""
+    return np.concatenate(([vessel.iz_kgm2, vessel.xg_m, vessel.draft_m, vessel.frontal_wind_area_m2,
+                            vessel.lateral_wind_area_m2], BLENDERMANN_TYPES[wind_type],
+                           np.ravel(vessel.added_mass_matrix), np.ravel(vessel.damping_matrix),
+                           vessel.quadratic_damping))
 
 
 class ManoeuvringVesselModel(_ModelBase):
@@ -246,6 +212,8 @@ class ManoeuvringVesselModel(_ModelBase):
         Speed through the water u0, held constant [m/s] (> 0).
     extras : PlantVesselExtras or None
     """
+
+    kind = MANOEUVRING_MODEL
 
     def __init__(self, vessel: VesselData, derivatives: ManoeuvringDerivatives, surge_speed_mps: float,
                  extras: PlantVesselExtras | None = None) -> None:
@@ -279,7 +247,7 @@ class ManoeuvringVesselModel(_ModelBase):
         self.wind = WindCoefficients(cdt, bow, stern, delta, self.vessel.frontal_wind_area_m2,
                                      self.vessel.lateral_wind_area_m2, length,
                                      self.extras.wind_centroid_frac * length)
-        self._f = _manoeuvring_derivative(dv, length, half_rho, self.surge_speed_mps, (m22, m23, m32, m33))
+        self.params = _manoeuvring_parameters(dv, length, half_rho, self.surge_speed_mps, (m22, m23, m32, m33))
 
     @property
     def surge_mass_kg(self) -> float:
@@ -311,37 +279,14 @@ class ManoeuvringVesselModel(_ModelBase):
         return float(gain), float(t_sum - t3)
 
 
-def _manoeuvring_derivative(dv: ManoeuvringDerivatives, length: float, half_rho: float, u0: float,
-                            mass: tuple[float, float, float, float]) -> Derivative:
+def _manoeuvring_parameters(dv: ManoeuvringDerivatives, length: float, half_rho: float, u0: float,
+                            mass: tuple[float, float, float, float]) -> np.ndarray:
+    """The manoeuvring model's parameter array (layout :data:`sim_plant.kernels.MANOEUVRING_PARAMETERS`)."""
     m22, m23, m32, m33 = mass
     det = m22 * m33 - m23 * m32
-    y_v, y_r, y_d, n_v, n_r, n_d = dv.y_v, dv.y_r, dv.y_d, dv.n_v, dv.n_r, dv.n_d
     qy = half_rho * length**2  # × U²: force scale
     qn = half_rho * length**3  # × U²: moment scale
-    cos = math.cos
-    sin = math.sin
-    sqrt = math.sqrt
-
-    def f(psi: float, u: float, v: float, r: float, tx: float, ty: float, tn: float, cn: float, ce: float,  # noqa: PLR0917
-          rudder: float) -> tuple[float, float, float, float, float, float]:
-        del u, tx  # surge through the water is held at u0
-        c = cos(psi)
-        s = sin(psi)
-        uc = c * cn + s * ce
-        vc = c * ce - s * cn
-        vr = v - vc
-        big_u = sqrt(u0 * u0 + vr * vr)
-        vp = vr / big_u
-        rp = r * length / big_u
-        y = (y_v * vp + y_r * rp + y_d * rudder) * qy * big_u * big_u + ty
-        n = (n_v * vp + n_r * rp + n_d * rudder) * qn * big_u * big_u + tn
-        vr_dot = (m33 * y - m23 * n) / det
-        r_dot = (m22 * n - m32 * y) / det
-        ug = u0 + uc
-        # ν = ν_r + ν_c, ν̇_c = (r v_c, −r u_c, 0)
-        return (c * ug - s * v, s * ug + c * v, r, r * vc, vr_dot - r * uc, r_dot)
-
-    return f
+    return np.array([m22, m23, m32, m33, det, dv.y_v, dv.y_r, dv.y_d, dv.n_v, dv.n_r, dv.n_d, qy, qn, length, u0])
 
 
 def vessel_model(vessel: VesselData, surge_speed_mps: float | None = None) -> DpVesselModel | ManoeuvringVesselModel:

@@ -25,11 +25,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from dpcontrol.allocation.kernels import (
+    AZIMUTH,
+    FIXED,
+    L_MODE,
+    L_VARIABLE,
+    RUDDER,
+    extended_thrust,
+    generalized_force,
+)
 from dpcontrol.models.thrusters import ThrusterSpec
-
-FIXED = 0
-AZIMUTH = 1
-RUDDER = 2
 
 
 def _frozen(array: np.ndarray) -> np.ndarray:
@@ -74,18 +79,24 @@ class ThrusterGeometry:
     azimuth_index: np.ndarray
     rudder_index: np.ndarray
     rudder_lift_per_rad: np.ndarray
-    # (thruster, variable[, k_L]) of the rudders and fixed thrusters for extended_from_commands
-    _rudders: tuple[tuple[int, int, float], ...] = field(init=False, repr=False)
-    _fixed: tuple[tuple[int, int], ...] = field(init=False, repr=False)
+    # what the kernels of extended_from_commands/force_b read (dpcontrol.allocation.kernels): per thruster
+    # [mode, first variable], k_L (0 but for rudders), and B — writable copies, as the kernels' signatures take
+    _layout: np.ndarray = field(init=False, repr=False)
+    _lift: np.ndarray = field(init=False, repr=False)
+    _B: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         # build() puts the azimuth pairs first, at (2q, 2q + 1)
         if not np.array_equal(self.first_variable[self.azimuth_index], 2 * np.arange(self.azimuth_index.size)):
             raise ValueError("ThrusterGeometry: the azimuth variables must come first (use build())")
-        first = self.first_variable.tolist()
-        object.__setattr__(self, "_rudders", tuple(
-            (i, first[i], float(k)) for i, k in zip(self.rudder_index.tolist(), self.rudder_lift_per_rad, strict=True)))
-        object.__setattr__(self, "_fixed", tuple((i, first[i]) for i in self.fixed_index.tolist()))
+        layout = np.zeros((len(self.specs), 2), dtype=np.int64)
+        layout[:, L_MODE] = self.mode
+        layout[:, L_VARIABLE] = self.first_variable
+        lift = np.zeros(len(self.specs))
+        lift[self.rudder_index] = self.rudder_lift_per_rad
+        object.__setattr__(self, "_layout", layout)
+        object.__setattr__(self, "_lift", lift)
+        object.__setattr__(self, "_B", np.array(self.B, dtype=float, order="C"))
 
     @staticmethod
     def build(specs: Sequence[ThrusterSpec]) -> ThrusterGeometry:
@@ -148,30 +159,36 @@ class ThrusterGeometry:
         ``angle_rad`` is the azimuth for azimuths, the rudder angle for ``propeller_rudder``
         (lift only for positive thrust) and ignored (the spec's ``angle_rad``) otherwise.
         """
-        thrust = np.asarray(thrust_n, dtype=float)
-        angle = np.asarray(angle_rad, dtype=float)
-        # Python floats for the handful of thrusters (a numpy call per thruster type costs more than the
-        # arithmetic); the azimuths' cos/sin stay numpy's, the same values as a vectorised evaluation
-        t = thrust.tolist()
-        f = [0.0] * self.n_variables
-        if self.azimuth_index.size:
-            a = angle[self.azimuth_index]
-            for q, (i, c, s) in enumerate(zip(self.azimuth_index.tolist(), np.cos(a).tolist(), np.sin(a).tolist(),
-                                              strict=True)):
-                f[2 * q] = t[i] * c
-                f[2 * q + 1] = t[i] * s
-        if self.rudder_index.size:
-            delta = angle.tolist()
-            for i, j, k_lift in self._rudders:
-                f[j] = t[i]
-                f[j + 1] = t[i] * k_lift * delta[i] if t[i] > 0.0 else 0.0   # lift only ahead
-        for i, j in self._fixed:
-            f[j] = t[i]
-        return np.array(f)
+        f = np.empty(self.n_variables)
+        extended_thrust(self._layout, self._lift, self._per_thruster("thrust_n", thrust_n),
+                        self._per_thruster("angle_rad", angle_rad), f)
+        return f
 
-    def force_b(self, thrust_n: np.ndarray, angle_rad: np.ndarray) -> np.ndarray:
-        """Generalized force ``B f`` ``[N, N, N·m]`` of thrust/angle commands."""
-        return self.B @ self.extended_from_commands(thrust_n, angle_rad)
+    def force_b(self, thrust_n: np.ndarray, angle_rad: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """Generalized force ``B f`` ``[N, N, N·m]`` of thrust/angle commands.
+
+        Parameters
+        ----------
+        thrust_n, angle_rad : array_like, shape (n,)
+            As :meth:`extended_from_commands` [N], [rad].
+        out : ndarray, shape (3,), optional
+            Written in place and returned (C-contiguous float64); default a new array.
+        """
+        if out is None:
+            out = np.empty(3)
+        elif not (type(out) is np.ndarray and out.shape == (3,) and out.dtype == np.float64 and out.flags.carray):
+            raise ValueError("out must be a writable C-contiguous float64 array of shape (3,)")
+        generalized_force(self._layout, self._lift, self._B, self._per_thruster("thrust_n", thrust_n),
+                          self._per_thruster("angle_rad", angle_rad), np.empty(self.n_variables), out)
+        return out
+
+    def _per_thruster(self, name: str, value: np.ndarray) -> np.ndarray:
+        """``value`` as the kernels take it: a C-contiguous writable float64 array of shape (n,)."""
+        if not (type(value) is np.ndarray and value.dtype == np.float64 and value.flags.carray):
+            value = np.array(value, dtype=float)  # a copy: contiguous and writable
+        if value.shape != (len(self.specs),):
+            raise ValueError(f"{name} must have one entry per thruster ({len(self.specs)}), got shape {value.shape}")
+        return value
 
 
 def rudder_slope(spec: ThrusterSpec) -> float:

@@ -94,13 +94,12 @@ from typing import Any
 import numpy as np
 from scipy.signal import butter, sosfilt
 
+from dpcontrol.estimation.kernels import GROUP_FIELDS, band_update, bayes_step
+
+__all__ = ["BandLikelihood", "apply_floor", "bayes_step", "dwsg_step"]
+
 _NEWTON_ITERATIONS = 8
 _NEWTON_TOLERANCE = 1e-12
-# The C reductions behind ndarray.max/min/sum (same results), without the Python-level wrappers that
-# cost more than the reduction of a handful of values in the control loop.
-_MAX = np.maximum.reduce
-_MIN = np.minimum.reduce
-_SUM = np.add.reduce
 
 
 def apply_floor(p: np.ndarray, floor: float) -> None:
@@ -162,34 +161,6 @@ def dwsg_step(p: np.ndarray, log_likelihood: np.ndarray, *, rate_per_s: float, d
     apply_floor(p, floor)
 
 
-def bayes_step(log_w: np.ndarray, p: np.ndarray, log_likelihood: np.ndarray, *, forgetting: float,
-               log_floor: float) -> None:
-    """Discrete Bayesian weight update with forgetting, in the log domain, in place.
-
-    ``ln w_i(k) = α ln w_i(k−1) + ln L_i(k)`` (Anderson & Moore; α = 1 is pure Bayes), shifted so the
-    largest is 0 and floored at ``ln(floor)`` relative to it; ``p = w / Σ w``.
-
-    Parameters
-    ----------
-    log_w : ndarray, shape (N,)
-        Unnormalised log-weights (max 0); overwritten.
-    p : ndarray, shape (N,)
-        Overwritten with the normalised weights.
-    log_likelihood : ndarray, shape (N,)
-        ``log β_i − m_i`` of this sample.
-    forgetting : float
-        α in (0, 1].
-    log_floor : float
-        ln of the relative floor (``-inf`` disables).
-    """
-    log_w *= forgetting
-    log_w += log_likelihood
-    log_w -= _MAX(log_w)      # ufunc reductions: ndarray.max/.sum without their Python-level wrappers
-    np.maximum(log_w, log_floor, out=log_w)
-    np.exp(log_w, out=p)
-    p /= _SUM(p)
-
-
 # ------------------------------------------------------------------------------------------------
 # Band-limited, locally whitened, tempered likelihood (see the module docstring).
 
@@ -211,7 +182,7 @@ def _cascade_state_space(sos: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nd
     One section ``y = b0 x + z1; z1' = b1 x − a1 y + z2; z2' = b2 x − a2 y`` is
     ``z' = [[−a1, 1], [−a2, 0]] z + [b1 − a1 b0, b2 − a2 b0] x``, ``y = z1 + b0 x``; the cascade feeds each
     output to the next section (block lower-triangular A). The same arithmetic as ``sosfilt``, written
-    as one linear map so that a whole bank of channels advances in one batched matmul.
+    as one linear map so that a whole bank of channels advances in one pass (``kernels.band_update``).
     """
     n_sec = sos.shape[0]
     n = 2 * n_sec
@@ -240,7 +211,7 @@ class _Prefilter:
     """Band-pass and below-band low-pass prefilters of one channel at one sample period.
 
     Coefficients from ``scipy.signal.butter``; the two filters run in parallel as one state-space system
-    (outputs: band, low) so the whole bank advances in one batched matmul per period.
+    (outputs: band, low) so the whole bank advances in one pass per period.
     """
 
     __slots__ = ("A", "B", "C", "D", "band_noise_gain", "band_width_rad_s", "white_ratio")
@@ -289,7 +260,8 @@ class BandLikelihood:
     gain)``; until data arrive the design expectation ``prior_wf_energy`` stands in.
 
     Everything is batched: the N innovation rows and the residual row of the three channels advance
-    through their prefilters in one state-space matmul, the statistics are (rows, groups, 2) arrays;
+    through their prefilters in one compiled kernel (:func:`~dpcontrol.estimation.kernels.band_update`),
+    the statistics are (rows, groups, 2) arrays;
     a group that is not measured this period keeps its states (decay 1, gain 0).
 
     Parameters
@@ -339,46 +311,34 @@ class BandLikelihood:
         self._stacks: dict[tuple[int, int], tuple[np.ndarray, ...]] = {}
         n_state = self._prefilter(1).A.shape[0]           # also checks the band at the control period
         rows = self.n_models + 1                           # the bank's innovations + the residual row
-        self.state = np.zeros((rows, 3, 1, n_state))        # prefilter states per row and channel
+        self.state = np.zeros((rows, 3, n_state))           # prefilter states per row and channel
         # [y | z'] = z [Cᵀ | Aᵀ] + x [D | Bᵀ]: outputs (band, low) then the next states, per row and channel
-        self._yz = np.zeros((rows, 3, 1, 2 + n_state))
-        self._yz_in = np.zeros_like(self._yz)
-        self._z_new = self._yz[..., 2:]
-        self._x = np.zeros((rows, 3))
-        self._sq = np.zeros((rows, 3, 2))
-        self._energy = np.zeros((rows, _GROUPS, 2))         # per group: band, low energy
-        self.means = np.zeros((rows, _GROUPS, 2))           # short-window EWMA numerators
-        # per-group scalars as Python floats (cheaper than numpy scalars in the control loop)
-        self.weight_sum = [0.0, 0.0]                        # EWMA weight sums (warm-up 1 − e^{−t/T_s})
-        self.wf_mean = [0.0, 0.0]                           # EWMA numerator of the residual band energy
-        self.wf_weight = [0.0, 0.0]
-        self.wf_time_s = [0.0, 0.0]                         # data time behind it
+        self._yz = np.zeros((rows, 3, 2 + n_state))
+        self._energy_band = np.zeros((rows, _GROUPS))       # this period's band energy per row and group
+        self.means = np.zeros((rows, _GROUPS, 2))           # short-window EWMA numerators (band, low)
+        # per-group statistics and constants, one row per group (columns: kernels.GROUP_FIELDS)
+        self._group = np.zeros((_GROUPS, len(GROUP_FIELDS)))
+        column = {name: k for k, name in enumerate(GROUP_FIELDS)}
+        self._group[:, column["noise"]] = self._noise
+        self._group[:, column["prior"]] = self._prior
+        self._group[:, column["scale_time_s"]] = self.scale_time_s
+        self._group[:, column["share_time_s"]] = self.share_time_s
+        self._group[:, column["lf_excess_limit"]] = self.lf_excess_limit
+        self._group[:, column["dt_s"]] = self.dt_s
+        # views of the statistics' columns (read/write through them)
+        self.weight_sum = self._group[:, column["weight_sum"]]   # EWMA weight sums (warm-up 1 − e^{−t/T_s})
+        self.wf_mean = self._group[:, column["wf_mean"]]         # EWMA numerator of the residual band energy
+        self.wf_weight = self._group[:, column["wf_weight"]]
+        self.wf_time_s = self._group[:, column["wf_time_s"]]     # data time behind it
+        self.wf_energy = self._group[:, column["wf_energy"]]
+        self.wf_share = self._group[:, column["wf_share"]]
+        self.wf_energy[:] = self._prior
+        self.wf_share[:] = self.wf_energy / max(float(self.wf_energy.sum()), 1e-300)
         self.steps_since = [0, 0]
-        self.wf_energy = [float(v) for v in self._prior]
-        self.wf_share = [v / max(sum(self.wf_energy), 1e-300) for v in self.wf_energy]
         self.gate = np.zeros(_GROUPS)                       # last γ_g (diagnostics)
         self.gate_max = 0.0                                 # max_g γ_g of the last update that had evidence
         self.log_l = np.zeros(self.n_models)
-        self._decay = np.ones((1, _GROUPS, 1))
-        self._gain = np.zeros((1, _GROUPS, 1))
         self._coef = np.zeros(_GROUPS)
-        self._work = np.zeros((rows, _GROUPS, 2))
-        # views the update reuses (creating a view costs about as much as a small numpy operation)
-        n = self.n_models
-        self._x_bank = self._x[:-1]
-        self._x_residual = self._x[-1]
-        self._x_heading = self._x[:, 2]
-        self._xs = self._x[:, :, None, None]
-        self._out_yx = self._yz[:, :, 0, :2]                # (rows, channel, [band, low])
-        self._sq_pos = (self._sq[:, 0, :], self._sq[:, 1, :])
-        self._sq_psi = self._sq[:, 2, :]
-        self._energy_pos = self._energy[:, 0, :]
-        self._energy_psi = self._energy[:, 1, :]
-        self._energy_band = self._energy[:n, :, 0]
-        self._band_means = [self.means[:n, g, 0] for g in range(_GROUPS)]
-        self._low_means = [self.means[:n, g, 1] for g in range(_GROUPS)]
-        self._decay_flat = self._decay.reshape(_GROUPS)
-        self._gain_flat = self._gain.reshape(_GROUPS)
 
     # -- configuration ----------------------------------------------------------------------------
     def _prefilter(self, gap: int) -> _Prefilter:
@@ -387,16 +347,18 @@ class BandLikelihood:
             pre = self._filters[gap] = _Prefilter(self.band_rad_s, gap * self.dt_s, self.order)
         return pre
 
-    def _stack(self, gaps: tuple[int, int]) -> tuple[np.ndarray, ...]:
-        """Per-channel ``[Cᵀ | Aᵀ]`` (3, s, 2 + s) and ``[D | Bᵀ]`` (3, 1, 2 + s) stacks — outputs and next
-        states in one product — and the held-state mask for the groups' gaps (0: not measured)."""
+    def _stack(self, gaps: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per-channel ``[Cᵀ | Aᵀ]`` (3, s, 2 + s) and ``[D | Bᵀ]`` (3, 2 + s) stacks — outputs and next
+        states in one product — and per group (2, 3) the band noise gain, white ratio and band width of its
+        prefilter, for the groups' gaps (0: not measured)."""
         stack = self._stacks.get(gaps)
         if stack is None:
             pres = [self._prefilter(max(gaps[g], 1)) for g in (0, 0, 1)]
-            CAt = np.stack([np.concatenate([p.C.T, p.A.T], axis=1) for p in pres])
-            DB = np.stack([np.concatenate([p.D, p.B]) for p in pres])[:, None, :]
-            active = np.array([gaps[g] > 0 for g in (0, 0, 1)])[None, :, None, None]
-            stack = self._stacks[gaps] = (CAt, DB, active)
+            CAt = np.ascontiguousarray(np.stack([np.concatenate([p.C.T, p.A.T], axis=1) for p in pres]))
+            DB = np.ascontiguousarray(np.stack([np.concatenate([p.D, p.B]) for p in pres]))
+            params = np.array([[p.band_noise_gain, p.white_ratio, p.band_width_rad_s]
+                               for p in (self._prefilter(max(gaps[g], 1)) for g in range(_GROUPS))])
+            stack = self._stacks[gaps] = (CAt, DB, params)
         return stack
 
     def restart(self) -> None:
@@ -404,7 +366,7 @@ class BandLikelihood:
         WF share estimate (a property of the sea) are kept by the caller / here."""
         self.state[...] = 0.0
         self.means[...] = 0.0
-        self.weight_sum = [0.0, 0.0]
+        self.weight_sum[:] = 0.0
         self.steps_since = [0, 0]
         self.gate[:] = 0.0
 
@@ -436,79 +398,16 @@ class BandLikelihood:
                     self.weight_sum[g] = 0.0
                     gap = 1
                 gaps[g] = gap
-        if gaps == [0, 0]:
+        if gaps[0] == 0 and gaps[1] == 0:
             self.log_l[:] = 0.0
             return False
-        CAt, DB, active = self._stack((gaps[0], gaps[1]))
-        # inputs: rows 0..N−1 the bank's innovations, row N the residual; heading as ψ·L/2
-        np.copyto(self._x_bank, eps)
-        np.copyto(self._x_residual, residual)
-        self._x_heading *= self.heading_scale_m
-        # outputs y = C z + D x and states z' = A z + B x of every row and channel: one batched matmul
-        np.matmul(self.state, CAt, out=self._yz)
-        np.multiply(self._xs, DB, out=self._yz_in)
-        self._yz += self._yz_in
-        if gaps[0] and gaps[1]:
-            np.copyto(self.state, self._z_new)
-        else:
-            np.copyto(self.state, self._z_new, where=active)
-        # group energies (band, low): position = north² + east², heading = (ψ·L/2)²
-        np.multiply(self._out_yx, self._out_yx, out=self._sq)
-        np.add(self._sq_pos[0], self._sq_pos[1], out=self._energy_pos)
-        np.copyto(self._energy_psi, self._sq_psi)
-        # their short-window EWMAs; an unmeasured group: decay 1, gain 0
-        decay = self._decay_flat
-        gain = self._gain_flat
-        for g in range(_GROUPS):
-            a = math.exp(-gaps[g] * self.dt_s / self.scale_time_s) if gaps[g] else 1.0
-            decay[g] = a
-            gain[g] = 1.0 - a
-            self.weight_sum[g] = a * self.weight_sum[g] + (1.0 - a)
-        self.means *= self._decay
-        self.means += np.multiply(self._energy, self._gain, out=self._work)
-        used = False
-        for g in range(_GROUPS):
-            self._coef[g] = 0.0
-            if not gaps[g]:
-                continue
-            pre = self._prefilter(gaps[g])
-            self._share_update(g, gaps[g], pre)
-            weight = self.weight_sum[g]
-            band_means = self._band_means[g]
-            scale = float(_MIN(band_means)) / weight
-            band_total = float(_SUM(band_means))
-            lam = self.wf_share[g]
-            if not (scale > 0.0 and band_total > 0.0 and lam > 0.0):
-                self.gate[g] = 0.0
-                continue
-            excess = float(_SUM(self._low_means[g])) / band_total / pre.white_ratio
-            gate = weight * min(1.0, self.lf_excess_limit / excess) if excess > 0.0 else weight
-            self.gate[g] = gate
-            kappa = pre.band_width_rad_s * gaps[g] * self.dt_s / math.pi
-            self._coef[g] = -0.5 * lam * gate * kappa / scale
-            used = True
-        if used:
-            np.matmul(self._energy_band, self._coef, out=self.log_l)
-            # the largest gate of the bank, for the weights' forgetting (groups not measured keep theirs)
-            self.gate_max = float(_MAX(self.gate))
-        else:
-            self.log_l[:] = 0.0
-        return used
-
-    def _share_update(self, g: int, gap: int, pre: _Prefilter) -> None:
-        """WF motion energy of group g from its band-passed residual, noise floor removed; λ."""
-        a = math.exp(-gap * self.dt_s / self.share_time_s)
-        self.wf_mean[g] = a * self.wf_mean[g] + (1.0 - a) * float(self._energy[-1, g, 0])
-        self.wf_weight[g] = a * self.wf_weight[g] + (1.0 - a)
-        measured = self.wf_mean[g] / self.wf_weight[g] - self._noise[g] * pre.band_noise_gain
-        # the data (a bias-corrected mean) replace the design expectation within the warm-up time
-        warm = 1.0 - math.exp(-self.wf_time_s[g] / self.scale_time_s)
-        self.wf_time_s[g] += gap * self.dt_s
-        energy = self.wf_energy
-        energy[g] = warm * max(measured, 0.0) + (1.0 - warm) * self._prior[g]
-        total = energy[0] + energy[1]
-        if total > 0.0:
-            self.wf_share = [energy[0] / total, energy[1] / total]
+        CAt, DB, params = self._stack((gaps[0], gaps[1]))
+        gate_max = band_update(eps, residual, self.heading_scale_m, gaps[0], gaps[1], self.state, CAt, DB, self._yz,
+                               self.means, self._group, params, self._energy_band, self.gate, self._coef, self.log_l)
+        if gate_max < 0.0:
+            return False
+        self.gate_max = gate_max
+        return True
 
     # -- persistence (a restart must not lose the evidence statistics: bumpless weights) ----------
     _ARRAYS = ("state", "means", "gate")
@@ -520,7 +419,8 @@ class BandLikelihood:
         for name in self._ARRAYS:
             out[name] = getattr(self, name).tolist()
         for name in self._SCALARS:
-            out[name] = list(getattr(self, name))
+            value = getattr(self, name)
+            out[name] = value.tolist() if isinstance(value, np.ndarray) else list(value)
         return out
 
     def load_state_dict(self, state: Any) -> None:
@@ -550,7 +450,9 @@ class BandLikelihood:
         for name in self._ARRAYS:
             getattr(self, name)[...] = staged[name]
         for name in self._SCALARS:
-            values = staged[name].tolist()
-            setattr(self, name, [int(v) for v in values] if name == "steps_since" else values)
-        total = sum(self.wf_energy)
-        self.wf_share = [v / total for v in self.wf_energy] if total > 0.0 else [0.5, 0.5]
+            if name == "steps_since":
+                self.steps_since = [int(v) for v in staged[name].tolist()]
+            else:
+                getattr(self, name)[:] = staged[name]     # the views of the statistics array
+        total = float(self.wf_energy.sum())
+        self.wf_share[:] = self.wf_energy / total if total > 0.0 else 0.5

@@ -13,6 +13,8 @@ import math
 
 import numpy as np
 
+from dpcontrol.jit import f8, kernel
+
 TWO_PI = 2.0 * math.pi
 
 
@@ -29,10 +31,16 @@ def ssa(angle_rad: float) -> float:
     float
         The same direction expressed in (−π, π] [rad].
     """
-    wrapped = math.fmod(angle_rad + math.pi, TWO_PI)
+    # Python's float % is fmod plus a sign correction (CPython's float_rem), so this is the fmod-based
+    # wrap bit for bit; numba compiles % (not math.fmod) with the same semantics for ssa_compiled.
+    wrapped = (angle_rad + math.pi) % TWO_PI
     if wrapped <= 0.0:
         wrapped += TWO_PI
     return wrapped - math.pi
+
+
+ssa_compiled = kernel(f8(f8))(ssa)
+""":func:`ssa` compiled, for calls from inside compiled kernels (the same source and results)."""
 
 
 def ssa_array(angle_rad: np.ndarray) -> np.ndarray:

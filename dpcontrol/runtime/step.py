@@ -349,7 +349,7 @@ class DpController:
             return
         delivered = self.monitor.delivered()
         if delivered is not None:
-            self._tau_input_b[:] = self.allocator.geometry.force_b(delivered[0], delivered[1])
+            self.allocator.geometry.force_b(delivered[0], delivered[1], out=self._tau_input_b)
         else:
             self._tau_input_b[:] = out.tau_achieved_b
 

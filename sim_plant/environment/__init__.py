@@ -1,4 +1,5 @@
-"""Plant environment: waves (spectra, RAOs, WF motion, drift), current and wind (pure numpy).
+"""Plant environment: waves (spectra, RAOs, WF motion, drift), current and wind (numpy; the per-step
+sums over wave and gust components are kernels of :mod:`sim_plant.kernels`).
 
 Modules: :mod:`.spectra` (JONSWAP / Pierson–Moskowitz, NORSOK gusts, sums of sinusoids),
 :mod:`.rao` (parametric motion RAOs and drift coefficients from the hull dimensions),

@@ -1,9 +1,10 @@
 """Wave and gust spectra, and their realisation as sums of sinusoids.
 
-Pure numpy. Written out by hand rather than taken from a marine toolkit (mhkit has a JONSWAP
-function) because the formulas are a few lines each and the toolkit would pull pandas/xarray into a
-plant whose hot path must stay allocation-free; what matters here — normalisation to the exact Hs
-and the frequency discretisation — is ours anyway.
+Numpy, plus one compiled kernel (:func:`sim_plant.kernels.cosine_sum`) for the per-step value of a
+:class:`SpectralProcess`. Written out by hand rather than taken from a marine toolkit (mhkit has a
+JONSWAP function) because the formulas are a few lines each and the toolkit would pull pandas/xarray
+into a plant whose hot path must stay allocation-free; what matters here — normalisation to the
+exact Hs and the frequency discretisation — is ours anyway.
 
 Units: angular frequency ω [rad/s], spectral densities S(ω) [m²·s/rad] (waves) or per Hz where
 named ``_per_hz``.
@@ -16,6 +17,8 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
+
+from sim_plant.kernels import cosine_sum
 
 GRAVITY_MPS2 = 9.81
 
@@ -171,7 +174,8 @@ class SpectralProcess:
     """A zero-mean stationary random process as a sum of cosines: x(t) = Σ c_j cos(ω_j t + θ_j).
 
     Stateless in time (any t, any order, same value), deterministic for a seed; used for wind
-    gusts and slow current variation. ``value(t)`` costs one small vector cosine.
+    gusts and slow current variation. ``value(t)`` is one kernel call
+    (:func:`sim_plant.kernels.cosine_sum`).
 
     Parameters
     ----------
@@ -180,13 +184,13 @@ class SpectralProcess:
     phase_rad : ndarray, shape (n,)
     """
 
-    __slots__ = ("_amplitude", "_omega", "_phase", "_work")
+    __slots__ = ("_amplitude", "_omega", "_phase")
 
     def __init__(self, omega_rad_s: np.ndarray, amplitude: np.ndarray, phase_rad: np.ndarray) -> None:
-        self._omega = np.asarray(omega_rad_s, dtype=float)
-        self._amplitude = np.asarray(amplitude, dtype=float)
-        self._phase = np.asarray(phase_rad, dtype=float)
-        self._work = np.empty_like(self._omega)
+        # C-contiguous float64: the layout of the kernel's arguments
+        self._omega = np.ascontiguousarray(omega_rad_s, dtype=float)
+        self._amplitude = np.ascontiguousarray(amplitude, dtype=float)
+        self._phase = np.ascontiguousarray(phase_rad, dtype=float)
 
     @staticmethod
     def from_one_sided(omega_edges_rad_s: np.ndarray, density: np.ndarray, rng: np.random.Generator
@@ -206,11 +210,7 @@ class SpectralProcess:
 
     def value(self, t_s: float) -> float:
         """x(t) [unit]."""
-        work = self._work
-        np.multiply(self._omega, t_s, out=work)
-        work += self._phase
-        np.cos(work, out=work)
-        return float(np.dot(self._amplitude, work))
+        return cosine_sum(t_s, self._omega, self._phase, self._amplitude)
 
     def series(self, t_s: np.ndarray) -> np.ndarray:
         """x(t) for an array of times (tests, plots)."""

@@ -33,10 +33,12 @@ import numpy as np
 from dpcontrol.models.frames import ssa
 from sim_plant.environment.rao import HullDimensions, drift_direction_factors, motion_raos, reflection_coefficient
 from sim_plant.environment.spectra import GRAVITY_MPS2, SPECTRA, WaveComponents, realise_waves, wave_spectrum
+from sim_plant.kernels import W_B, W_PSI, W_X, WAVE_WEIGHTS, wave_sums
 
 _BETA_STEPS = 360
 _BETA_STEP_RAD = 2.0 * math.pi / _BETA_STEPS
 _BETA_REFRESH_RAD = 1e-3  # re-interpolate the RAO vectors when β moved more than this (0.06°)
+_BETA_GRID = -math.pi + _BETA_STEP_RAD * np.arange(_BETA_STEPS + 1)  # the RAO table's β [rad]
 
 
 @dataclass(frozen=True)
@@ -129,42 +131,41 @@ class WaveField:
         self.propagation_rad = ssa(chi)
         self._cos_chi = math.cos(chi)
         self._sin_chi = math.sin(chi)
-        self._omega = components.omega_rad_s
-        self._k = components.wavenumber_radpm
-        self._eps = components.phase_rad
+        # C-contiguous float64: the layout of the kernel's arguments
+        self._omega = np.ascontiguousarray(components.omega_rad_s, dtype=float)
+        self._k = np.ascontiguousarray(components.wavenumber_radpm, dtype=float)
+        self._eps = np.ascontiguousarray(components.phase_rad, dtype=float)
         self._a = components.amplitude_m
         self._rho = water_density_kgpm3
         self._drift_scale = drift_scale
-        n = self._omega.size
-        self._phi = np.empty(n)
-        self._tmp = np.empty(n)
-        self._sin = np.empty(n)
-        self._cos = np.empty(n)
-        # The weights of the sums over the components, as rows of two matrices so that evaluate() forms
-        # the seven sums with two matrix-vector products: rows multiplying sin φ (x, y, ψ̇ from ω, ψ̇ from
-        # the Doppler term, Im A) and rows multiplying cos φ (ψ, Re A); _ax ... are views of the rows.
-        self._weights_sin = np.zeros((5, n))
-        self._weights_cos = np.zeros((2, n))
-        self._ax, self._ay, self._apsi_w, self._apsi_k, self._b_sin = self._weights_sin
-        self._apsi, self._b_cos = self._weights_cos
+        # The weights of the sums over the components (rows: sim_plant.kernels.WAVE_WEIGHTS): the RAOs
+        # times the amplitudes at the current β (interpolated in _refresh) and the drift amplitudes.
+        self._weights = np.zeros((len(WAVE_WEIGHTS), self._omega.size))
         self._beta_cached = math.inf
         self._drift_factors = (0.0, 0.0, 0.0)
         self.set_hull(hull)
 
     # -- hull-dependent tables ------------------------------------------------------------------
     def set_hull(self, hull: HullDimensions) -> None:
-        """(Re)build the RAO tables over β (1° grid) and the drift coefficients for ``hull``."""
+        """(Re)build the RAO table over β (1° grid) and the drift coefficients for ``hull``.
+
+        The table's rows are computed when first needed (:meth:`_rao_row`): a vessel on station uses
+        two or three of the 361, and the draft of a tanker being loaded changes the hull ~200 times.
+        """
         self.hull = hull
-        beta = -math.pi + _BETA_STEP_RAD * np.arange(_BETA_STEPS + 1)
-        rx, ry, rpsi = motion_raos(self._omega[None, :], beta[:, None], hull)
-        self._table_x = rx * self._a
-        self._table_y = ry * self._a
-        self._table_psi = rpsi * self._a
+        self._rao_rows: dict[int, np.ndarray] = {}
         r = reflection_coefficient(self._omega, hull.draft_m)
         self._b = math.sqrt(0.5 * self._rho * GRAVITY_MPS2 * self._drift_scale) * r * self._a
-        self._b_sin[:] = self._b
-        self._b_cos[:] = self._b
+        self._weights[W_B] = self._b
         self._beta_cached = math.inf
+
+    def _rao_row(self, j: int) -> np.ndarray:
+        """Row ``j`` of the RAO table, shape (3, n): a_i X, a_i Y, a_i Ψ at β_j [m, m, rad]."""
+        row = self._rao_rows.get(j)
+        if row is None:
+            rx, ry, rpsi = motion_raos(self._omega[None, :], _BETA_GRID[j:j + 1, None], self.hull)
+            row = self._rao_rows[j] = np.concatenate((rx, ry, rpsi)) * self._a
+        return row
 
     def _refresh(self, beta: float) -> None:
         if abs(beta - self._beta_cached) <= _BETA_REFRESH_RAD:
@@ -172,11 +173,9 @@ class WaveField:
         pos = (beta + math.pi) / _BETA_STEP_RAD
         j = min(int(pos), _BETA_STEPS - 1)
         w = pos - j
-        for table, target in ((self._table_x, self._ax), (self._table_y, self._ay), (self._table_psi, self._apsi)):
-            np.multiply(table[j], 1.0 - w, out=target)
-            np.add(target, w * table[j + 1], out=target)
-        np.multiply(self._apsi, self._omega, out=self._apsi_w)
-        np.multiply(self._apsi, self._k, out=self._apsi_k)
+        target = self._weights[W_X:W_PSI + 1]  # the rows a X, a Y, a Ψ: linear in β between the grid rows
+        np.multiply(self._rao_row(j), 1.0 - w, out=target)
+        np.add(target, w * self._rao_row(j + 1), out=target)
         self._beta_cached = beta
         self._drift_factors = drift_direction_factors(beta, self.hull)
 
@@ -188,7 +187,7 @@ class WaveField:
     def evaluate(self, t_s: float, north_m: float, east_m: float, heading_rad: float, *,
                  north_rate_mps: float = 0.0, east_rate_mps: float = 0.0, weight: float = 1.0
                  ) -> tuple[float, float, float, float, float, float]:
-        """WF motion, its yaw rate and the drift envelope at one instant (no array allocation).
+        """WF motion, its yaw rate and the drift envelope at one instant (:func:`sim_plant.kernels.wave_sums`).
 
         Parameters
         ----------
@@ -210,17 +209,7 @@ class WaveField:
         self._refresh(beta)
         d = north_m * self._cos_chi + east_m * self._sin_chi
         d_rate = north_rate_mps * self._cos_chi + east_rate_mps * self._sin_chi
-        phi = self._phi
-        np.multiply(self._omega, t_s, out=phi)
-        np.multiply(self._k, d, out=self._tmp)
-        phi -= self._tmp
-        phi += self._eps
-        np.sin(phi, out=self._sin)
-        np.cos(phi, out=self._cos)
-        x, y, psi_rate_w, psi_rate_k, im_a = (self._weights_sin @ self._sin).tolist()
-        psi, re_a = (self._weights_cos @ self._cos).tolist()
-        psi_rate = psi_rate_w - d_rate * psi_rate_k
-        return (weight * x, weight * y, -weight * psi, weight * psi_rate, weight * re_a, weight * im_a)
+        return wave_sums(t_s, d, d_rate, weight, self._omega, self._k, self._eps, self._weights)
 
     def drift_factors(self) -> tuple[float, float, float]:
         """Direction factors (l_x, l_y, l_n) for the β of the last :meth:`evaluate`."""

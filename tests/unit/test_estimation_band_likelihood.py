@@ -54,6 +54,30 @@ def test_state_space_prefilter_is_the_sos_cascade(lo: float, ratio: float, gap: 
     assert np.allclose(out[:, 1], low, rtol=1e-9, atol=1e-12)
 
 
+def test_band_energies_are_the_sos_filtered_innovations() -> None:
+    """The compiled update filters every row (N innovations + the residual) and channel as scipy's sosfilt
+    would, and its log-likelihoods are the band energies times the per-group coefficients."""
+    from scipy.signal import butter  # noqa: PLC0415
+
+    rng = np.random.default_rng(21)
+    steps, n_models = 300, 3
+    eps = _innovations(steps, rng, np.array([1.0, 1.5, 2.0]))
+    residual = rng.standard_normal((steps, 3)) * np.array([0.02, 0.02, 0.002])
+    band = _band(n_models)
+    lo, hi = band.band_rad_s
+    sos = butter(2, [lo, hi], btype="bandpass", fs=2.0 * math.pi / DT, output="sos")
+    rows = np.concatenate([eps, residual[:, None, :]], axis=1)          # (steps, N + 1, 3)
+    rows[:, :, 2] *= band.heading_scale_m                               # heading as ψ·L/2
+    filtered = sosfilt(sos, rows, axis=0)
+    for k in range(steps):
+        band.update(eps[k], True, True, residual[k])
+        expected = np.stack([filtered[k, :, 0] ** 2 + filtered[k, :, 1] ** 2, filtered[k, :, 2] ** 2], axis=1)
+        assert np.allclose(band._energy_band, expected, rtol=1e-9, atol=1e-20)
+        if band.gate_max > 0.0:
+            assert np.allclose(band.log_l, band._energy_band[:n_models] @ band._coef, rtol=1e-12, atol=0.0)
+    assert np.any(band.log_l != 0.0)
+
+
 def test_cascade_of_one_section_is_its_biquad() -> None:
     sos = np.array([[0.2, 0.3, 0.1, 1.0, -0.5, 0.2]])
     A, B, C, D = _cascade_state_space(sos)
