@@ -32,31 +32,43 @@ def geodetic_to_ecef(lat_deg: float, lon_deg: float, alt_m: float = 0.0) -> tupl
             (n * (1.0 - WGS84_E2) + alt_m) * sin_lat)
 
 
+# Products of constants in Heikkinen's formula, each computed once by the operations, in the order, the
+# written-out formula uses (Python evaluates ``54.0 * b * b * z * z`` as ``((54.0 * b) * b) * z * z``), so every
+# result is bit for bit that of the formula.
+_B2 = WGS84_B_M * WGS84_B_M
+_54_B2 = 54.0 * WGS84_B_M * WGS84_B_M
+_1_E2 = 1.0 - WGS84_E2
+_E2_E2 = WGS84_E2 * WGS84_E2
+_2_E2_E2 = 2.0 * WGS84_E2 * WGS84_E2
+_E2_A2_B2 = WGS84_E2 * (WGS84_A_M * WGS84_A_M - WGS84_B_M * WGS84_B_M)
+_HALF_A2 = 0.5 * WGS84_A_M * WGS84_A_M
+
+
 def ecef_to_geodetic(x_m: float, y_m: float, z_m: float) -> tuple[float, float, float]:
     """ECEF [m] → WGS-84 geodetic [deg, deg, m] (Heikkinen / Zhu closed form, exact to < 1 µm)."""
     a = WGS84_A_M
-    b = WGS84_B_M
     e2 = WGS84_E2
-    ep2 = WGS84_EP2
     p = math.hypot(x_m, y_m)
     lon = math.atan2(y_m, x_m)
     if p < 1e-9:  # on the polar axis
         lat = math.copysign(math.pi / 2.0, z_m)
-        return math.degrees(lat), math.degrees(lon), abs(z_m) - b
-    f_ = 54.0 * b * b * z_m * z_m
-    g = p * p + (1.0 - e2) * z_m * z_m - e2 * (a * a - b * b)
-    c = e2 * e2 * f_ * p * p / (g * g * g)
+        return math.degrees(lat), math.degrees(lon), abs(z_m) - WGS84_B_M
+    f_ = _54_B2 * z_m * z_m  # 54 b² z²
+    g = p * p + _1_E2 * z_m * z_m - _E2_A2_B2  # p² + (1 − e²) z² − e² (a² − b²)
+    c = _E2_E2 * f_ * p * p / (g * g * g)
     s = (1.0 + c + math.sqrt(c * c + 2.0 * c)) ** (1.0 / 3.0)
     k = s + 1.0 + 1.0 / s
     pp = f_ / (3.0 * k * k * g * g)
-    q = math.sqrt(1.0 + 2.0 * e2 * e2 * pp)
+    q = math.sqrt(1.0 + _2_E2_E2 * pp)
     r0 = -(pp * e2 * p) / (1.0 + q) + math.sqrt(
-        max(0.5 * a * a * (1.0 + 1.0 / q) - pp * (1.0 - e2) * z_m * z_m / (q * (1.0 + q)) - 0.5 * pp * p * p, 0.0))
-    u = math.hypot(p - e2 * r0, z_m)
-    v = math.sqrt((p - e2 * r0) ** 2 + (1.0 - e2) * z_m * z_m)
-    z0 = b * b * z_m / (a * v)
-    alt = u * (1.0 - b * b / (a * v))
-    lat = math.atan((z_m + ep2 * z0) / p)
+        max(_HALF_A2 * (1.0 + 1.0 / q) - pp * _1_E2 * z_m * z_m / (q * (1.0 + q)) - 0.5 * pp * p * p, 0.0))
+    w = p - e2 * r0
+    u = math.hypot(w, z_m)
+    v = math.sqrt(w ** 2 + _1_E2 * z_m * z_m)
+    av = a * v
+    z0 = _B2 * z_m / av
+    alt = u * (1.0 - _B2 / av)
+    lat = math.atan((z_m + WGS84_EP2 * z0) / p)
     return math.degrees(lat), math.degrees(lon), alt
 
 
@@ -82,18 +94,21 @@ class LocalFrame:
         lat = math.radians(self.lat0_deg)
         lon = math.radians(self.lon0_deg)
         object.__setattr__(self, "_origin", geodetic_to_ecef(self.lat0_deg, self.lon0_deg, self.alt0_m))
-        object.__setattr__(self, "_trig", (math.sin(lat), math.cos(lat), math.sin(lon), math.cos(lon)))
+        sl, cl, so, co = math.sin(lat), math.cos(lat), math.sin(lon), math.cos(lon)
+        object.__setattr__(self, "_trig", (sl, cl, so, co))
+        # ECEF → NED rotation, the products as to_ned evaluated them left to right (so the same floats):
+        # north = (−sl·co)dx − (sl·so)dy + cl·dz, east = (−so)dx + co·dy, down = (−cl·co)dx − (cl·so)dy − sl·dz
+        object.__setattr__(self, "_to_ned", (-sl * co, sl * so, cl, -so, co, -cl * co, cl * so, sl))
 
     def to_ned(self, lat_deg: float, lon_deg: float, alt_m: float = 0.0) -> tuple[float, float, float]:
         """Geodetic [deg, deg, m] → local NED [m] (north, east, down)."""
         x, y, z = geodetic_to_ecef(lat_deg, lon_deg, alt_m)
         x0, y0, z0 = self._origin  # type: ignore[attr-defined]
-        dx, dy, dz = x - x0, y - y0, z - z0
-        sl, cl, so, co = self._trig  # type: ignore[attr-defined]
-        north = -sl * co * dx - sl * so * dy + cl * dz
-        east = -so * dx + co * dy
-        down = -cl * co * dx - cl * so * dy - sl * dz
-        return north, east, down
+        dx = x - x0
+        dy = y - y0
+        dz = z - z0
+        n_x, n_y, n_z, e_x, e_y, d_x, d_y, d_z = self._to_ned  # type: ignore[attr-defined]
+        return n_x * dx - n_y * dy + n_z * dz, e_x * dx + e_y * dy, d_x * dx - d_y * dy - d_z * dz
 
     def to_geodetic(self, north_m: float, east_m: float, down_m: float = 0.0) -> tuple[float, float, float]:
         """Local NED [m] → geodetic [deg, deg, m]."""
@@ -111,11 +126,22 @@ class LocalFrame:
         10 km from the datum); this finds the down coordinate that puts the point at ``alt_m``, so
         that ``to_ned(lat, lon, alt_m)`` returns ``north_m, east_m`` exactly.
         """
+        # :meth:`to_geodetic` at each ``down``, with the north/east part of its rotation computed once (the same
+        # operations in the same order: bit for bit the same point; one GNSS fix runs this four times)
+        sl, cl, so, co = self._trig  # type: ignore[attr-defined]
+        x0, y0, z0 = self._origin  # type: ignore[attr-defined]
+        dx_ne = -sl * co * north_m - so * east_m
+        dy_ne = -sl * so * north_m + co * east_m
+        dz_n = cl * north_m
+        clco = cl * co
+        clso = cl * so
         down = 0.0
         for _ in range(3):  # the altitude error shrinks by ~1e-6 per iteration
-            lat, lon, alt = self.to_geodetic(north_m, east_m, down)
+            _, _, alt = ecef_to_geodetic(x0 + (dx_ne - clco * down), y0 + (dy_ne - clso * down),
+                                         z0 + (dz_n - sl * down))
             down += alt - alt_m
-        lat, lon, _ = self.to_geodetic(north_m, east_m, down)
+        lat, lon, _ = ecef_to_geodetic(x0 + (dx_ne - clco * down), y0 + (dy_ne - clso * down),
+                                       z0 + (dz_n - sl * down))
         return lat, lon
 
 

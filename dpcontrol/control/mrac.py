@@ -63,7 +63,9 @@ not by a wrong mass).
 
 The adaptive law is integrated with the error signals held over the sample (zero-order hold),
 which is the exact integral of (21) for piecewise-constant signals, followed by the projection;
-the reference model (15) is discretised exactly (matrix exponential, cached per ``dt``).
+the reference model (15) is discretised exactly for each step's ``dt`` (the matrix exponential in closed
+form, :func:`~dpcontrol.control.kernels.reference_transition`: the daemon's measured period changes every
+cycle).
 
 Damping: â₁ is not adapted by default in the runtime configuration (``Γ₂₂ = 0``, configurable). At
 DP speeds the damping hardly shows in a set-point move (seed 003 Fig. 11: "an oscillatory
@@ -104,7 +106,44 @@ from typing import Any
 import numpy as np
 from scipy.linalg import expm, solve_continuous_lyapunov
 
-from dpcontrol.control.base import ALL_DOFS, ControlOutput, check_dt, dof_mask, floats3
+from dpcontrol.control.base import ALL_DOFS, HEADING_ONLY, ControlOutput, check_dt, dof_mask, floats3
+from dpcontrol.control.kernels import (
+    C_A1_HI,
+    C_A1_LO,
+    C_A1_NOMINAL,
+    C_A2_HI,
+    C_A2_LO,
+    C_A2_NOMINAL,
+    C_ACCEL,
+    C_BETA0,
+    C_BETA1,
+    C_DEAD_ZONE,
+    C_FLAGS,
+    C_G12,
+    C_G_RATIO,
+    C_GAMMA_C,
+    C_GAMMA_M,
+    C_OMEGA,
+    C_ROWS,
+    C_VELOCITY,
+    C_ZETA,
+    ERROR_INPUT,
+    MASS_CHANGED,
+    OUT_ERROR,
+    OUT_PARAMETERS,
+    OUT_SIZE,
+    OUT_TAU,
+    OUT_VELOCITY_ERROR,
+    S_A1,
+    S_A2,
+    S_ACHIEVED,
+    S_COMMAND,
+    S_FLAGS,
+    S_ROWS,
+    S_Y_M,
+    S_YD_M,
+    mrac_step,
+)
 from dpcontrol.control.pid import default_natural_period_s
 from dpcontrol.guidance.reference_model import Reference, ReferenceModel, ReferenceModelConfig, default_reference_config
 from dpcontrol.models.frames import ssa
@@ -117,7 +156,6 @@ REGRESSORS: tuple[str, ...] = ("reference", "plant")
 #: Reference-model outputs added to :attr:`ControlOutput.parameters` by :meth:`MracController.step`: the
 #: state ``y_M`` of eq. (15) in NED at the step's time (the pose the vessel is made to track).
 REFERENCE_MODEL_NAMES: tuple[str, ...] = ("ref_model_north_m", "ref_model_east_m", "ref_model_heading_rad")
-_SATURATION_TOLERANCE = 1e-6
 Triple = tuple[float, float, float]
 
 
@@ -443,50 +481,57 @@ class MracController:
 
     Notes
     -----
-    The per-step arithmetic is on plain floats, one SISO loop per DOF: for three scalar loops
-    that is several times faster than numpy calls on 3-vectors (measured ≈ 11 µs vs ≈ 40 µs per step).
+    One step is one compiled call (:func:`dpcontrol.control.kernels.mrac_step`) on the constants and
+    the state held here in two small arrays (layouts in :mod:`dpcontrol.control.kernels`): three SISO
+    loops of scalar arithmetic, which as Python floats cost ≈ 30 µs per step.
     """
 
     def __init__(self, config: MracConfig, adapt: bool | None = None) -> None:
         self._config = config
         self._adapt = config.adapt if adapt is None else bool(adapt)
-        self._reference_regressor = config.regressor == "reference"
-        self._excited = [False, False, False]
-        self._beta0 = [float(v) for v in config.beta0]
-        self._beta1 = [float(v) for v in config.beta1]
+        beta0 = [float(v) for v in config.beta0]
+        beta1 = [float(v) for v in config.beta1]
+        self._beta0 = beta0
+        self._beta1 = beta1
         q = np.diag(config.lyapunov_q)
         self._g12 = [0.0, 0.0, 0.0]
         self._g22 = [0.0, 0.0, 0.0]
         for i in range(3):
-            A = np.array([[0.0, 1.0], [-self._beta0[i], -self._beta1[i]]])
+            A = np.array([[0.0, 1.0], [-beta0[i], -beta1[i]]])
             # G A + Aᵀ G = −Q_C (eq. (20)); scipy solves a X + X aᴴ = q, so a = Aᵀ, q = −Q_C
             G = solve_continuous_lyapunov(A.T, -q)
             self._g12[i] = float(G[0, 1])
             self._g22[i] = float(G[1, 1])
-        self._g_ratio = [g22 / g12 for g12, g22 in zip(self._g12, self._g22, strict=True)]
-        self._gamma_m = list(config.adaptation_gain_mass)
-        self._gamma_c = list(config.adaptation_gain_damping)
-        self._dead_zone = list(config.dead_zone)
-        self._accel_threshold = list(config.accel_threshold)
-        self._velocity_threshold = list(config.velocity_threshold)
         m_nom = list(config.mass_nominal)
         c_nom = list(config.damping_nominal)
-        self._a2_nominal = m_nom
-        self._a1_nominal = c_nom
         lo, hi = config.mass_bounds_factor
-        self._a2_bounds = ([lo * m for m in m_nom], [hi * m for m in m_nom])
         dlo, dhi = config.damping_bounds_factor
-        self._a1_bounds = ([dlo * c for c in c_nom],
-                           [max(dhi * c, m * b1) for c, m, b1 in zip(c_nom, m_nom, self._beta1, strict=True)])
-        self._a2 = list(m_nom)
-        self._a1 = list(c_nom)
-        self._y_m = [0.0, 0.0, 0.0]
-        self._yd_m = [0.0, 0.0, 0.0]
-        self._initialised = False
-        self._last_command_b = [0.0, 0.0, 0.0]
-        self._last_achieved_b: list[float] | None = None
-        self._discrete_dt = -1.0
-        self._phi: list[tuple[float, float, float, float, float, float]] = []  # per DOF: φ11 φ12 φ21 φ22 γ1 γ2
+        const = np.zeros((C_ROWS, 3))
+        const[C_BETA0] = beta0
+        const[C_BETA1] = beta1
+        const[C_G12] = self._g12
+        const[C_G_RATIO] = [g22 / g12 for g12, g22 in zip(self._g12, self._g22, strict=True)]
+        const[C_GAMMA_M] = config.adaptation_gain_mass
+        const[C_GAMMA_C] = config.adaptation_gain_damping
+        const[C_DEAD_ZONE] = config.dead_zone
+        const[C_ACCEL] = config.accel_threshold
+        const[C_VELOCITY] = config.velocity_threshold
+        const[C_A2_LO] = [lo * m for m in m_nom]
+        const[C_A2_HI] = [hi * m for m in m_nom]
+        const[C_A1_LO] = [dlo * c for c in c_nom]
+        const[C_A1_HI] = [max(dhi * c, m * b1) for c, m, b1 in zip(c_nom, m_nom, beta1, strict=True)]
+        const[C_A2_NOMINAL] = m_nom
+        const[C_A1_NOMINAL] = c_nom
+        const[C_OMEGA] = [2.0 * math.pi / t for t in config.natural_period_s]
+        const[C_ZETA] = config.relative_damping
+        const[C_FLAGS] = (config.leakage_per_s, float(self._adapt), float(config.regressor == "reference"))
+        self._const = const
+        self._state = np.zeros((S_ROWS, 3))
+        self._state[S_A2] = m_nom
+        self._state[S_A1] = c_nom
+        self._excited = 0  # bit i: the reference model excited DOF i's mass adaptation at the last step
+        self._mass = (m_nom[0], m_nom[1], m_nom[2])  # â₂ as floats (mass_hat_floats), updated when it changes
+        self._zero3 = np.zeros(3)  # b̂ and τ̂_wind when not given
 
     @property
     def config(self) -> MracConfig:
@@ -500,55 +545,38 @@ class MracController:
     @property
     def excited(self) -> tuple[bool, bool, bool]:
         """Per DOF: the reference model excited the mass adaptation at the last step (gate open)."""
-        return (self._excited[0], self._excited[1], self._excited[2])
+        bits = self._excited
+        return (bits & 1 != 0, bits & 2 != 0, bits & 4 != 0)  # (MASS_CHANGED is bit 3)
 
     @property
     def mass_hat(self) -> np.ndarray:
         """Estimated masses ``â₂`` [kg, kg, kg·m²] (new array)."""
-        return np.array(self._a2)
+        return self._state[S_A2].copy()
 
     @property
     def mass_hat_floats(self) -> tuple[float, float, float]:
         """``â₂`` as Python floats (no array: for a per-step check whether it changed)."""
-        a2 = self._a2
-        return (a2[0], a2[1], a2[2])
+        return self._mass
 
     @property
     def damping_hat(self) -> np.ndarray:
         """Estimated damping ``â₁`` [N·s/m, N·s/m, N·m·s/rad] (new array)."""
-        return np.array(self._a1)
+        return self._state[S_A1].copy()
 
     @property
     def reference_model_state_n(self) -> tuple[np.ndarray, np.ndarray]:
         """``(y_M, ẏ_M)`` of the reference model in NED (new arrays)."""
-        return np.array(self._y_m), np.array(self._yd_m)
+        return self._state[S_Y_M].copy(), self._state[S_YD_M].copy()
 
     def parameters(self) -> dict[str, float]:
         """Parameter estimates keyed by :data:`PARAMETER_NAMES`."""
-        return dict(zip(PARAMETER_NAMES, (*self._a2, *self._a1), strict=True))
+        return dict(zip(PARAMETER_NAMES, self._state[S_A2:S_A1 + 1].ravel().tolist(), strict=True))
 
     def equivalent_pd_gains(self) -> tuple[np.ndarray, np.ndarray]:
         """Seed 003 eq. (25): ``P = â₂β₀``, ``D = â₂β₁`` per DOF (acting on ``e`` and ``ė``)."""
-        return (np.array([a * b for a, b in zip(self._a2, self._beta0, strict=True)]),
-                np.array([a * b for a, b in zip(self._a2, self._beta1, strict=True)]))
-
-    def _discretise(self, dt: float) -> None:
-        # a measured sample time jitters in the last digits: reuse the matrices unless dt changed
-        # by more than 1e-6 (relative), far below the model's accuracy
-        if abs(dt - self._discrete_dt) <= 1e-6 * dt:
-            return
-        phi = []
-        for i in range(3):
-            a = np.zeros((3, 3))
-            a[0, 1] = 1.0
-            a[1, 0] = -self._beta0[i]
-            a[1, 1] = -self._beta1[i]
-            a[1, 2] = self._beta0[i]  # input r: ÿ_M = β₀(r − y_M) − β₁ẏ_M  (eq. (15), u_c = k_M r)
-            e = expm(a * dt)
-            phi.append((float(e[0, 0]), float(e[0, 1]), float(e[1, 0]), float(e[1, 1]), float(e[0, 2]),
-                        float(e[1, 2])))
-        self._phi = phi
-        self._discrete_dt = dt
+        a2 = self._state[S_A2].tolist()
+        return (np.array([a * b for a, b in zip(a2, self._beta0, strict=True)]),
+                np.array([a * b for a, b in zip(a2, self._beta1, strict=True)]))
 
     def step(self, dt_s: float, eta_hat_n: np.ndarray, nu_hat_b: np.ndarray, bias_hat_b: np.ndarray | None,
              reference: Reference, *, dof_enabled: Sequence[bool] = ALL_DOFS,
@@ -563,123 +591,71 @@ class MracController:
         tracking error ``e = y − y_M`` of eq. (17) is measured against.
         """
         dt = check_dt(dt_s)
-        eta = floats3("eta_hat_n", eta_hat_n)
-        nu = floats3("nu_hat_b", nu_hat_b)
-        mask = dof_mask(dof_enabled)
-        bias = (0.0, 0.0, 0.0) if bias_hat_b is None else floats3("bias_hat_b", bias_hat_b)
-        wind = (0.0, 0.0, 0.0) if tau_wind_ff_b is None else floats3("tau_wind_ff_b", tau_wind_ff_b)
-        r = floats3("reference.eta_d_n", reference.eta_d_n)
-        c = math.cos(eta[2])
-        s = math.sin(eta[2])
-        y_m, yd_m = self._y_m, self._yd_m
-        if not self._initialised:
-            y_m[:] = [eta[0], eta[1], ssa(eta[2])]
-            yd_m[:] = [c * nu[0] - s * nu[1], s * nu[0] + c * nu[1], nu[2]]
-            self._initialised = True
-        b0, b1 = self._beta0, self._beta1
-
-        # reference model (15) with u_c = k_M r: its acceleration at t_k (NED; heading the short way)
-        d = [r[0] - y_m[0], r[1] - y_m[1], ssa(r[2] - y_m[2])]
-        ydd = [b0[i] * d[i] - b1[i] * yd_m[i] for i in range(3)]
-        # errors and reference in the vessel-parallel frame
-        dn = eta[0] - y_m[0]
-        de = eta[1] - y_m[1]
-        e_b = (c * dn + s * de, -s * dn + c * de, ssa(eta[2] - y_m[2]))
-        yd_b = (c * yd_m[0] + s * yd_m[1], -s * yd_m[0] + c * yd_m[1], yd_m[2])
-        ydd_b = (c * ydd[0] + s * ydd[1], -s * ydd[0] + c * ydd[1], ydd[2])
-        ed_b = (nu[0] - yd_b[0], nu[1] - yd_b[1], nu[2] - yd_b[2])
-        z = [ydd_b[i] - b1[i] * ed_b[i] - b0[i] * e_b[i] for i in range(3)]  # (17)
-        a2, a1 = self._a2, self._a1
-        tau = [a2[i] * z[i] + a1[i] * nu[i] - bias[i] - wind[i] if mask[i] else 0.0 for i in range(3)]  # (18)
-
-        if self._adapt:
-            self._adaptation(dt, (z, nu, yd_b, ydd_b), e_b, ed_b, mask)
-        self._last_command_b = tau
-        outputs = self.parameters()
-        outputs["ref_model_north_m"] = y_m[0]
-        outputs["ref_model_east_m"] = y_m[1]
-        outputs["ref_model_heading_rad"] = y_m[2]
-
-        # advance the reference model over the sample (exact ZOH discretisation of (15))
-        self._discretise(dt)
-        for i in range(3):
-            p11, p12, p21, p22, g1, g2 = self._phi[i]
-            target = y_m[i] + d[i]  # = r, with the heading unwrapped next to y_M
-            y_new = p11 * y_m[i] + p12 * yd_m[i] + g1 * target
-            yd_m[i] = p21 * y_m[i] + p22 * yd_m[i] + g2 * target
-            y_m[i] = y_new
-        y_m[2] = ssa(y_m[2])
-        return ControlOutput(tau_b=np.array(tau), error_b=np.array(e_b), velocity_error_b=np.array(ed_b),
-                             parameters=outputs)
-
-    def _adaptation(self, dt: float, regressor: tuple[Sequence[float], ...], e_b: Sequence[float],
-                    e_dot_b: Sequence[float], mask: tuple[bool, bool, bool]) -> None:
-        """Eq. (21) with gating, dead zone, optional leakage and projection; ``regressor = (z, ẏ, ẏ_M, ÿ_M)``."""
-        z, nu, yd_m_b, ydd_m_b = regressor
-        self._excited[:] = (False, False, False)
-        achieved = self._last_achieved_b
-        command = self._last_command_b
-        sigma = self._config.leakage_per_s
-        for i in range(3):
-            if not mask[i]:
-                continue
-            if achieved is not None and abs(achieved[i] - command[i]) > _SATURATION_TOLERANCE * (1.0 + abs(command[i])):
-                continue  # the allocator could not deliver the last command: nothing to learn
-            # normalised error signal s̄ = bᵀGx / g₁₂ with a continuous dead zone, then bᵀGx = g₁₂ s̄_dz
-            s_bar = e_b[i] + self._g_ratio[i] * e_dot_b[i]
-            excess = abs(s_bar) - self._dead_zone[i]
-            s = self._g12[i] * math.copysign(excess, s_bar) if excess > 0.0 else 0.0
-            # (21), each parameter only while the reference model excites it
-            if self._reference_regressor:  # desired-compensation law: v_M = [ÿ_M, ẏ_M] instead of v = [z, ẏ]
-                v2, v1 = ydd_m_b[i], yd_m_b[i]
-            else:
-                v2, v1 = z[i], nu[i]
-            excited = abs(ydd_m_b[i]) > self._accel_threshold[i]
-            self._excited[i] = excited
-            rate2 = -self._gamma_m[i] * v2 * s if excited else 0.0
-            rate1 = -self._gamma_c[i] * v1 * s if abs(yd_m_b[i]) > self._velocity_threshold[i] else 0.0
-            if sigma > 0.0:
-                for values, gamma, rate, nominal in ((self._a2, self._gamma_m[i], rate2, self._a2_nominal[i]),
-                                                     (self._a1, self._gamma_c[i], rate1, self._a1_nominal[i])):
-                    k = sigma * gamma
-                    if k > 0.0:
-                        # σ-modification â̇ = f − σΓ(â − â_nom), solved exactly over dt with f held constant
-                        target = nominal + rate / k
-                        values[i] = target + (values[i] - target) * math.exp(-k * dt)
-                    else:
-                        values[i] += dt * rate
-            else:  # no leakage (the default): the plain integral of (21) over the sample
-                self._a2[i] += dt * rate2
-                self._a1[i] += dt * rate1
-            # projection onto the physical bounds
-            self._a2[i] = min(max(self._a2[i], self._a2_bounds[0][i]), self._a2_bounds[1][i])
-            self._a1[i] = min(max(self._a1[i], self._a1_bounds[0][i]), self._a1_bounds[1][i])
+        out = np.empty(OUT_SIZE)
+        # the runtime's arguments go straight to the kernel, which checks that the vectors are finite: the two
+        # DOF masks it passes (valid by construction) and float64 vectors (anything else: TypeError)
+        mask = 7 if dof_enabled is ALL_DOFS else (4 if dof_enabled is HEADING_ONLY else -1)
+        result = ERROR_INPUT
+        if mask >= 0:
+            bias = self._zero3 if bias_hat_b is None else bias_hat_b
+            wind = self._zero3 if tau_wind_ff_b is None else tau_wind_ff_b
+            try:
+                result = mrac_step(dt, eta_hat_n, nu_hat_b, bias, wind, reference.eta_d_n, mask, self._const,
+                                   self._state, out)
+            except TypeError:
+                result = ERROR_INPUT
+        if result < 0:  # the arguments checked in order and converted: the first invalid one raises ValueError
+            eta = np.array(floats3("eta_hat_n", eta_hat_n))
+            nu = np.array(floats3("nu_hat_b", nu_hat_b))
+            flags = dof_mask(dof_enabled)
+            bias = self._zero3 if bias_hat_b is None else np.array(floats3("bias_hat_b", bias_hat_b))
+            wind = self._zero3 if tau_wind_ff_b is None else np.array(floats3("tau_wind_ff_b", tau_wind_ff_b))
+            r = np.array(floats3("reference.eta_d_n", reference.eta_d_n))
+            result = mrac_step(dt, eta, nu, bias, wind, r, flags[0] + 2 * flags[1] + 4 * flags[2], self._const,
+                               self._state, out)
+        self._excited = result
+        values = out.tolist()
+        m0, m1, m2, c0, c1, c2, north, east, heading = values[OUT_PARAMETERS:]
+        if result & MASS_CHANGED:
+            self._mass = (m0, m1, m2)
+        # keys: PARAMETER_NAMES, REFERENCE_MODEL_NAMES (a dict display and positional fields: dict(zip(...)) and
+        # keywords cost three times as much)
+        parameters = {"mass_surge_kg": m0, "mass_sway_kg": m1, "inertia_yaw_kgm2": m2, "damping_surge_nspm": c0,
+                      "damping_sway_nspm": c1, "damping_yaw_nmsprad": c2, "ref_model_north_m": north,
+                      "ref_model_east_m": east, "ref_model_heading_rad": heading}
+        return ControlOutput(out[OUT_TAU:OUT_TAU + 3], out[OUT_ERROR:OUT_ERROR + 3],
+                             out[OUT_VELOCITY_ERROR:OUT_VELOCITY_ERROR + 3], parameters)
 
     def notify_achieved(self, tau_achieved_b: np.ndarray) -> None:
         """The force the allocator could deliver for the last command (freezes adaptation if short)."""
-        self._last_achieved_b = list(floats3("tau_achieved_b", tau_achieved_b))
+        self._state[S_ACHIEVED] = floats3("tau_achieved_b", tau_achieved_b)
+        self._state[S_FLAGS, 1] = 1.0
 
     def reset(self) -> None:
         """Re-initialise the reference model at the next estimate (bumpless); parameters are kept."""
-        self._initialised = False
-        self._last_command_b = [0.0, 0.0, 0.0]
-        self._last_achieved_b = None
+        state = self._state
+        state[S_FLAGS, 0] = 0.0
+        state[S_COMMAND] = 0.0
+        state[S_FLAGS, 1] = 0.0
 
     def reset_parameters(self) -> None:
         """Parameter estimates back to the nominal values."""
-        self._a2 = list(self._a2_nominal)
-        self._a1 = list(self._a1_nominal)
+        self._state[S_A2] = self._const[C_A2_NOMINAL]
+        self._state[S_A1] = self._const[C_A1_NOMINAL]
+        m0, m1, m2 = self._state[S_A2].tolist()
+        self._mass = (m0, m1, m2)
 
     def state_dict(self) -> dict[str, Any]:
         """JSON-able state: parameter estimates, reference model, saturation memory."""
+        state = self._state
         return {
-            "mass_hat": list(self._a2),
-            "damping_hat": list(self._a1),
-            "initialised": self._initialised,
-            "y_m_n": list(self._y_m),
-            "y_dot_m_n": list(self._yd_m),
-            "last_command_b": list(self._last_command_b),
-            "last_achieved_b": None if self._last_achieved_b is None else list(self._last_achieved_b),
+            "mass_hat": state[S_A2].tolist(),
+            "damping_hat": state[S_A1].tolist(),
+            "initialised": bool(state[S_FLAGS, 0]),
+            "y_m_n": state[S_Y_M].tolist(),
+            "y_dot_m_n": state[S_YD_M].tolist(),
+            "last_command_b": state[S_COMMAND].tolist(),
+            "last_achieved_b": state[S_ACHIEVED].tolist() if state[S_FLAGS, 1] else None,
         }
 
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
@@ -695,10 +671,17 @@ class MracController:
             initialised = bool(state["initialised"])
         except (KeyError, TypeError, ValueError) as error:
             raise ValueError(f"invalid MRAC state: {error}") from None
-        self._a2 = [min(max(a2[i], self._a2_bounds[0][i]), self._a2_bounds[1][i]) for i in range(3)]
-        self._a1 = [min(max(a1[i], self._a1_bounds[0][i]), self._a1_bounds[1][i]) for i in range(3)]
-        self._y_m = [y_m[0], y_m[1], ssa(y_m[2])]
-        self._yd_m = list(yd_m)
-        self._last_command_b = list(command)
-        self._last_achieved_b = None if achieved is None else list(achieved)
-        self._initialised = initialised
+        const = self._const
+        lo2, hi2, lo1, hi1 = (const[row].tolist() for row in (C_A2_LO, C_A2_HI, C_A1_LO, C_A1_HI))
+        ours = self._state
+        m0, m1, m2 = (min(max(a2[i], lo2[i]), hi2[i]) for i in range(3))
+        ours[S_A2] = (m0, m1, m2)
+        self._mass = (m0, m1, m2)
+        ours[S_A1] = [min(max(a1[i], lo1[i]), hi1[i]) for i in range(3)]
+        ours[S_Y_M] = (y_m[0], y_m[1], ssa(y_m[2]))
+        ours[S_YD_M] = yd_m
+        ours[S_COMMAND] = command
+        ours[S_ACHIEVED] = (0.0, 0.0, 0.0) if achieved is None else achieved
+        ours[S_FLAGS, 1] = float(achieved is not None)
+        ours[S_FLAGS, 0] = float(initialised)
+

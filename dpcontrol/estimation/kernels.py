@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from dpcontrol.jit import f8, f8_1d, f8_2d, f8_3d, i8, kernel, void
+from dpcontrol.jit import UniTuple, f8, f8_1d, f8_2d, f8_3d, i8, kernel, void
 from dpcontrol.models.frames import ssa_compiled as ssa
 
 TWO_PI = 2.0 * math.pi
@@ -34,6 +34,18 @@ GROUP_FIELDS = ("weight_sum", "wf_mean", "wf_weight", "wf_time_s", "wf_energy", 
                 "noise", "prior", "scale_time_s", "share_time_s", "lf_excess_limit", "dt_s")
 (G_WEIGHT_SUM, G_WF_MEAN, G_WF_WEIGHT, G_WF_TIME, G_WF_ENERGY, G_WF_SHARE,
  G_NOISE, G_PRIOR, G_SCALE_TIME, G_SHARE_TIME, G_LF_EXCESS_LIMIT, G_DT) = range(len(GROUP_FIELDS))
+
+
+@kernel(UniTuple(f8, 3)(f8_2d, f8_2d, i8))
+def model_measurement(x: np.ndarray, H: np.ndarray, i: int) -> tuple[float, float, float]:
+    """``H x_i`` of model i: its predicted measurement (vessel-parallel) [m, m, rad]; x (N, n), H (3, n)."""
+    y0 = y1 = y2 = 0.0
+    for j in range(x.shape[1]):
+        xj = x[i, j]
+        y0 += H[0, j] * xj
+        y1 += H[1, j] * xj
+        y2 += H[2, j] * xj
+    return y0, y1, y2
 
 
 @kernel(void(f8_2d, f8_2d, f8_1d, f8_2d, f8, f8, f8_1d, f8_1d))
@@ -52,27 +64,17 @@ def bank_predicted_measurement(x: np.ndarray, H: np.ndarray, p: np.ndarray, S9: 
     mean_n : (3,) out — ŷ in NED [m, m, rad], heading wrapped
     var_n : (3,) out — innovation variance diagonal in NED [m², m², rad²]
     """
-    N, n = x.shape
+    N = x.shape[0]
     m0 = m1 = m2 = 0.0
     for i in range(N):
-        y0 = y1 = y2 = 0.0
-        for j in range(n):
-            xj = x[i, j]
-            y0 += H[0, j] * xj
-            y1 += H[1, j] * xj
-            y2 += H[2, j] * xj
+        y0, y1, y2 = model_measurement(x, H, i)
         m0 += p[i] * y0
         m1 += p[i] * y1
         m2 += p[i] * y2
     c00 = c01 = c11 = c22 = 0.0
     s00 = s01 = s10 = s11 = s22 = 0.0
     for i in range(N):
-        y0 = y1 = y2 = 0.0
-        for j in range(n):
-            xj = x[i, j]
-            y0 += H[0, j] * xj
-            y1 += H[1, j] * xj
-            y2 += H[2, j] * xj
+        y0, y1, y2 = model_measurement(x, H, i)   # (recomputed: cheaper than a work array's dispatch)
         d0, d1, d2 = y0 - m0, y1 - m1, y2 - m2
         w = p[i]
         c00 += w * d0 * d0
@@ -175,12 +177,7 @@ def bank_correct(code: int, y_n: np.ndarray, psi_frame: float, heading: int, wf0
     yp2 = y_n[2] if use_psi else 0.0
     wrap = 0.0
     for i in range(N):
-        y0 = y1 = y2 = 0.0
-        for j in range(n):
-            xj = x[i, j]
-            y0 += H[0, j] * xj
-            y1 += H[1, j] * xj
-            y2 += H[2, j] * xj
+        y0, y1, y2 = model_measurement(x, H, i)
         if i == 0 and use_psi:
             raw = yp2 - y2
             wrap = ssa(raw) - raw

@@ -37,6 +37,22 @@ from typing import Any
 
 import numpy as np
 
+from dpcontrol.guidance.kernels import (
+    K_ACCEL,
+    K_OMEGA,
+    K_RATE,
+    K_SIZE,
+    K_SPEED,
+    K_YAW_ACCEL,
+    K_YAW_RATE,
+    K_ZETA,
+    S_ACCEL,
+    S_ETA,
+    S_PREFILTER,
+    S_ROWS,
+    S_VELOCITY,
+    reference_step,
+)
 from dpcontrol.models.frames import ssa
 from dpcontrol.models.schema import ConfigError, Section, check_vector
 from dpcontrol.models.vessels import VesselData
@@ -48,7 +64,6 @@ _DEFAULT_SPEED_100M_MPS = 0.5
 _DEFAULT_ACCEL_MPS2 = 0.01
 _DEFAULT_YAW_RATE_100M_RADPS = math.radians(1.0)
 _DEFAULT_YAW_ACCEL_100M_RADPS2 = math.radians(0.05)
-_STEP_ACCURACY = 0.2  # largest 2ζω·h (and ω·h) per integration sub-step
 
 
 @dataclass(frozen=True)
@@ -208,21 +223,27 @@ class ReferenceModel:
     -----
     Call :meth:`reset` with the current estimate when DP is engaged (bumpless entry: the
     reference starts where the vessel is, moving as it moves). Until then :meth:`step`
-    initialises the model at the first set-point.
+    initialises the model at the first set-point. A step is one compiled call
+    (:func:`dpcontrol.guidance.kernels.reference_step`) on the state array held here.
     """
 
-    __slots__ = ("_a", "_config", "_initialised", "_omega", "_rate", "_rf", "_v", "_x", "_zeta")
+    __slots__ = ("_config", "_const", "_initialised", "_omega", "_state", "_zeta")
 
     def __init__(self, config: ReferenceModelConfig) -> None:
         self._config = config
         self._omega = tuple(2.0 * math.pi / p for p in config.natural_period_s)
         self._zeta = config.relative_damping
+        const = np.zeros(K_SIZE)
+        const[K_OMEGA:K_OMEGA + 3] = self._omega
+        const[K_ZETA:K_ZETA + 3] = self._zeta
         # fastest rate of the model, max(2ζω, ω) over the DOFs: sets the integration sub-steps
-        self._rate = max(max(2.0 * z * w, w) for z, w in zip(self._zeta, self._omega, strict=True))
-        self._rf = [0.0, 0.0, 0.0]
-        self._x = [0.0, 0.0, 0.0]
-        self._v = [0.0, 0.0, 0.0]
-        self._a = [0.0, 0.0, 0.0]
+        const[K_RATE] = max(max(2.0 * z * w, w) for z, w in zip(self._zeta, self._omega, strict=True))
+        const[K_SPEED] = config.max_speed_mps
+        const[K_ACCEL] = config.max_accel_mps2
+        const[K_YAW_RATE] = config.max_yaw_rate_radps
+        const[K_YAW_ACCEL] = config.max_yaw_accel_radps2
+        self._const = const
+        self._state = np.zeros((S_ROWS, 3))  # r_f, η_d, η̇_d, η̈_d (layout: dpcontrol.guidance.kernels)
         self._initialised = False
 
     @property
@@ -248,17 +269,21 @@ class ReferenceModel:
         """
         north, east, psi = _finite3("eta_n", eta_n)
         v = (0.0, 0.0, 0.0) if nu_n is None else _finite3("nu_n", nu_n)
-        self._x = [north, east, ssa(psi)]
-        self._v = list(v)
-        self._a = [0.0, 0.0, 0.0]
+        x = [north, east, ssa(psi)]
         # v_c = ω/(2ζ)(r_f − η_d) = v  ⇒  r_f = η_d + 2ζ/ω · v
-        self._rf = [self._x[i] + 2.0 * self._zeta[i] / self._omega[i] * v[i] for i in range(3)]
-        self._rf[2] = ssa(self._rf[2])
+        rf = [x[i] + 2.0 * self._zeta[i] / self._omega[i] * v[i] for i in range(3)]
+        rf[2] = ssa(rf[2])
+        state = self._state
+        state[S_PREFILTER] = rf
+        state[S_ETA] = x
+        state[S_VELOCITY] = v
+        state[S_ACCEL] = 0.0
         self._initialised = True
 
     def current(self) -> Reference:
         """The reference at the last step (new arrays)."""
-        return Reference(np.array(self._x), np.array(self._v), np.array(self._a))
+        state = self._state.copy()  # (one copy, three views of it)
+        return Reference(state[S_ETA], state[S_VELOCITY], state[S_ACCEL])
 
     def step(self, dt_s: float, setpoint_eta_n: np.ndarray) -> Reference:
         """Advance the model by ``dt_s`` towards ``setpoint_eta_n``.
@@ -282,78 +307,29 @@ class ReferenceModel:
         """
         if not (math.isfinite(dt_s) and dt_s >= 0.0):
             raise ValueError(f"dt_s must be finite and >= 0, got {dt_s!r}")
-        r_n, r_e, r_psi = _finite3("setpoint_eta_n", setpoint_eta_n)
+        if self._initialised and dt_s > 0.0:  # the per-cycle case: the kernel checks the set-point
+            try:
+                if reference_step(dt_s, setpoint_eta_n, self._const, self._state):
+                    return self.current()
+            except TypeError:  # not a writable float64 vector: converted below
+                pass
+        setpoint = np.array(_finite3("setpoint_eta_n", setpoint_eta_n))  # (a ValueError leaves the state)
         if not self._initialised:
-            self.reset(np.array([r_n, r_e, r_psi]))
+            self.reset(setpoint)
         if dt_s == 0.0:
             return self.current()
-        cfg = self._config
-        w_n, w_e, w_p = self._omega
-        z_n, z_e, z_p = self._zeta
-        substeps = max(1, math.ceil(dt_s * self._rate / _STEP_ACCURACY))
-        h = dt_s / substeps
-        vmax = cfg.max_speed_mps
-        amax = cfg.max_accel_mps2
-        rmax = cfg.max_yaw_rate_radps
-        rdotmax = cfg.max_yaw_accel_radps2
-        rf_n, rf_e, rf_p = self._rf
-        x_n, x_e, x_p = self._x
-        v_n, v_e, v_p = self._v
-        a_n = a_e = a_p = 0.0
-        r_psi = ssa(r_psi)
-        for _ in range(substeps):
-            # first-order pre-filter (heading error by ssa: the short way round)
-            rf_n += h * w_n * (r_n - rf_n)
-            rf_e += h * w_e * (r_e - rf_e)
-            rf_p = ssa(rf_p + h * w_p * ssa(r_psi - rf_p))
-            # commanded velocity of the mass–spring–damper, limited by speed and braking distance
-            e_n = rf_n - x_n
-            e_e = rf_e - x_e
-            e_p = ssa(rf_p - x_p)
-            vc_n = w_n / (2.0 * z_n) * e_n
-            vc_e = w_e / (2.0 * z_e) * e_e
-            speed = math.hypot(vc_n, vc_e)
-            limit = min(vmax, math.sqrt(amax * math.hypot(e_n, e_e)))
-            if speed > limit:
-                scale = limit / speed
-                vc_n *= scale
-                vc_e *= scale
-            vc_p = w_p / (2.0 * z_p) * e_p
-            limit = min(rmax, math.sqrt(rdotmax * abs(e_p)))
-            if abs(vc_p) > limit:
-                vc_p = math.copysign(limit, vc_p)
-            # acceleration, limited (horizontal as a vector)
-            a_n = 2.0 * z_n * w_n * (vc_n - v_n)
-            a_e = 2.0 * z_e * w_e * (vc_e - v_e)
-            accel = math.hypot(a_n, a_e)
-            if accel > amax:
-                scale = amax / accel
-                a_n *= scale
-                a_e *= scale
-            a_p = 2.0 * z_p * w_p * (vc_p - v_p)
-            if abs(a_p) > rdotmax:
-                a_p = math.copysign(rdotmax, a_p)
-            # semi-implicit Euler
-            v_n += h * a_n
-            v_e += h * a_e
-            v_p += h * a_p
-            x_n += h * v_n
-            x_e += h * v_e
-            x_p = ssa(x_p + h * v_p)
-        self._rf = [rf_n, rf_e, rf_p]
-        self._x = [x_n, x_e, x_p]
-        self._v = [v_n, v_e, v_p]
-        self._a = [a_n, a_e, a_p]
+        reference_step(float(dt_s), setpoint, self._const, self._state)
         return self.current()
 
     def state_dict(self) -> dict[str, Any]:
         """JSON-able state (for a bumpless restart)."""
+        state = self._state
         return {
             "initialised": self._initialised,
-            "prefilter_n": list(self._rf),
-            "eta_d_n": list(self._x),
-            "eta_dot_d_n": list(self._v),
-            "eta_ddot_d_n": list(self._a),
+            "prefilter_n": state[S_PREFILTER].tolist(),
+            "eta_d_n": state[S_ETA].tolist(),
+            "eta_dot_d_n": state[S_VELOCITY].tolist(),
+            "eta_ddot_d_n": state[S_ACCEL].tolist(),
         }
 
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
@@ -363,7 +339,10 @@ class ReferenceModel:
             values = [_finite3(key, state[key]) for key in ("prefilter_n", "eta_d_n", "eta_dot_d_n", "eta_ddot_d_n")]
         except (KeyError, TypeError, ValueError) as error:
             raise ValueError(f"invalid reference model state: {error}") from None
-        self._rf, self._x, self._v, self._a = (list(v) for v in values)
-        self._rf[2] = ssa(self._rf[2])
-        self._x[2] = ssa(self._x[2])
+        rf, eta, velocity, accel = values
+        ours = self._state
+        ours[S_PREFILTER] = (rf[0], rf[1], ssa(rf[2]))
+        ours[S_ETA] = (eta[0], eta[1], ssa(eta[2]))
+        ours[S_VELOCITY] = velocity
+        ours[S_ACCEL] = accel
         self._initialised = initialised

@@ -21,7 +21,7 @@ from dpcontrol.allocation.allocator import allocator_kwargs_from_mapping
 from dpcontrol.control import AutopilotConfig, MracConfig, PidConfig, control_config_from_mapping
 from dpcontrol.estimation import WaveFilterConfig
 from dpcontrol.guidance import ReferenceModelConfig, reference_config_from_mapping
-from dpcontrol.models.schema import ConfigError, Section, parse_list
+from dpcontrol.models.schema import ConfigError, Section, join, parse_list
 from dpcontrol.models.vessels import VesselData, vessel_from_config
 from dpcontrol.runtime.hub import HubConfig, SensorConfig, SensorKind
 from interfaces.recorder import RecorderSettings
@@ -111,6 +111,20 @@ class StateSettings:
 
 
 @dataclass(frozen=True)
+class RealtimeSettings:
+    """Scheduling of the control loop's thread (``loop.realtime_priority``, ``loop.cpu_affinity``).
+
+    ``priority`` (1–99): SCHED_FIFO at that priority for the loop thread only — the sensor readers
+    and Zenoh's threads stay at normal priority, so the loop preempts them (and any other process)
+    the moment its deadline comes; None keeps the normal scheduler. ``cpus``: the CPUs the loop
+    thread may run on (empty: any).
+    """
+
+    priority: int | None = None
+    cpus: tuple[int, ...] = ()
+
+
+@dataclass(frozen=True)
 class DaemonConfig:
     """The whole validated configuration of ``dpcontrol run``."""
 
@@ -134,6 +148,7 @@ class DaemonConfig:
     state: StateSettings
     source_text: str = ""
     source_file: str | None = None
+    realtime: RealtimeSettings = field(default_factory=RealtimeSettings)
 
     @property
     def sample_time_s(self) -> float:
@@ -334,6 +349,17 @@ def _parse(mapping: object, text: str, file: str | None) -> DaemonConfig:
     rate = loop.number("rate_hz", 10.0, minimum=1.0, maximum=100.0)
     initial_mode = loop.string("initial_mode", "standby", choices=MODES)
     auto_engage = loop.optional_number("auto_engage_s", minimum=0.0)
+    priority = None if loop.raw("realtime_priority", None) is None else \
+        loop.integer("realtime_priority", minimum=1, maximum=99)
+    cpus: tuple[int, ...] = ()
+    if loop.raw("cpu_affinity", None) is not None:
+        raw_cpus = loop.raw("cpu_affinity")
+        if not isinstance(raw_cpus, list) or not raw_cpus or \
+                any(isinstance(c, bool) or not isinstance(c, int) or c < 0 for c in raw_cpus):
+            raise ConfigError(join(loop.path, "cpu_affinity"), "a non-empty list of CPU numbers (integers >= 0)",
+                              raw_cpus)
+        cpus = tuple(sorted(set(raw_cpus)))
+    realtime = RealtimeSettings(priority, cpus)
     loop.finish()
 
     transports = parse_list(root, "transports", _parse_transport, required=True, min_items=1)
@@ -406,7 +432,7 @@ def _parse(mapping: object, text: str, file: str | None) -> DaemonConfig:
     root.finish()
     return DaemonConfig(vessel_id, vessel, datum, rate, initial_mode, auto_engage, tuple(transports), routes,
                         estimator, guidance, control, allocation, hub, fallback, monitor, zenoh, recorder, state,
-                        source_text=text, source_file=file)
+                        source_text=text, source_file=file, realtime=realtime)
 
 
 def load_config(path: str | Path) -> DaemonConfig:

@@ -23,6 +23,7 @@ import gc
 import itertools
 import logging
 import math
+import os
 import re
 import signal
 import threading
@@ -230,12 +231,20 @@ class InputPump:
 
 @dataclass
 class LoopStats:
-    """Cycle timing of the loop (µs), measured on the loop's monotonic clock."""
+    """Cycle timing of the loop (µs), measured on the loop's monotonic clock.
+
+    Per cycle: its duration, the time from its start to the thruster command being published, the
+    lateness of its start against the deadline (jitter), and where the time to the command went —
+    ``inputs`` (draining the readers, links, setpoints, feedback, the cycle record), ``step`` (the
+    controller step) and ``command`` (building and publishing the command) — over the last
+    ``TIMING_WINDOW`` cycles.
+    """
 
     period_s: float
     durations_us: np.ndarray = field(default_factory=lambda: np.zeros(TIMING_WINDOW))
     publish_us: np.ndarray = field(default_factory=lambda: np.zeros(TIMING_WINDOW))
     jitter_us: np.ndarray = field(default_factory=lambda: np.zeros(TIMING_WINDOW))
+    phases_us: np.ndarray = field(default_factory=lambda: np.zeros((TIMING_WINDOW, 3)))
     count: int = 0
     missed_deadlines: int = 0
     step_errors: int = 0
@@ -247,6 +256,13 @@ class LoopStats:
         self.jitter_us[i] = jitter_us
         self.count += 1
 
+    def add_phases(self, inputs_us: float, step_us: float, command_us: float) -> None:
+        """The phases of the cycle being timed (call before :meth:`add`)."""
+        row = self.phases_us[self.count % TIMING_WINDOW]
+        row[0] = inputs_us
+        row[1] = step_us
+        row[2] = command_us
+
     def summary(self) -> dict[str, Any]:
         n = min(self.count, TIMING_WINDOW)
         if n == 0:
@@ -257,10 +273,13 @@ class LoopStats:
             return {"median": round(float(np.median(v)), 1), "p99": round(float(np.percentile(v, 99)), 1),
                     "max": round(float(np.max(v)), 1)}
 
+        phases = self.phases_us
         return {"cycles": self.count, "window": n, "missed_deadlines": self.missed_deadlines,
                 "step_errors": self.step_errors, "cycle_duration_us": stats(self.durations_us),
                 "start_to_command_published_us": stats(self.publish_us),
-                "period_jitter_us": stats(np.abs(self.jitter_us))}
+                "period_jitter_us": stats(np.abs(self.jitter_us)),
+                "phases_us": {"inputs": stats(phases[:, 0]), "step": stats(phases[:, 1]),
+                              "command": stats(phases[:, 2])}}
 
 
 class Daemon:
@@ -298,6 +317,7 @@ class Daemon:
         self._last_stats_t = -math.inf
         self._cycle_summary: dict[str, Any] = {}
         self.resumed_from_state = False
+        self.realtime_detail = "normal scheduler"
         self.state_detail = ""
         self._setpoints_rejected = 0
         self._setpoint_rejected_t = -math.inf
@@ -376,6 +396,8 @@ class Daemon:
         # the demo configuration, 1 µs after gc.freeze()).
         gc.collect()
         gc.freeze()
+        # after _open(): the reader and Zenoh threads exist already and keep the normal scheduler
+        self._apply_realtime()
         period = self.config.sample_time_s
         t0 = self.clock()
         deadline = t0
@@ -426,6 +448,34 @@ class Daemon:
         self._shutdown()
         return 0
 
+    def _apply_realtime(self) -> None:
+        """``loop.realtime_priority`` / ``loop.cpu_affinity`` for this (the loop's) thread.
+
+        Not granted (no CAP_SYS_NICE / RLIMIT_RTPRIO, no such CPU): a warning alarm, and the loop runs on
+        with the normal scheduler — the controller must not refuse to hold position over a scheduling
+        privilege.
+        """
+        settings = self.config.realtime
+        parts: list[str] = []
+        problems: list[str] = []
+        if settings.cpus:
+            try:
+                os.sched_setaffinity(0, settings.cpus)  # 0: the calling thread
+                parts.append(f"cpus {list(settings.cpus)}")
+            except (OSError, ValueError) as error:
+                problems.append(f"cpu_affinity {list(settings.cpus)}: {error}")
+        if settings.priority is not None:
+            try:
+                os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(settings.priority))
+                parts.append(f"SCHED_FIFO {settings.priority}")
+            except OSError as error:
+                problems.append(f"realtime_priority {settings.priority}: {error}")
+        self.realtime_detail = ", ".join(parts) if parts else "normal scheduler"
+        if problems:
+            text = "loop scheduling not granted (" + "; ".join(problems) + "): running with " + self.realtime_detail
+            log.warning("%s", text)
+            self.alarms.raise_(self.clock(), "loop.realtime", Severity.WARNING, text)
+
     # ---------------------------------------------------------------- one cycle
     def _cycle(self, t_s: float, measurements: list[Measurement], links: list[LinkStatus]) -> tuple[StepOutput, float]:
         assert self.pump is not None and self.node is not None
@@ -449,19 +499,23 @@ class Daemon:
                 if item.thrust_n is not None and item.azimuth_rad is not None:
                     feedback.append(ThrusterFeedback(item.name, item.thrust_n, item.azimuth_rad, item.ready,
                                                      latest.rx_t_s))
+        clock = self.clock
         if self.recorder is not None:  # exactly what this step consumed (dpcontrol replay reproduces it)
             self.recorder.record("cycle", t_s, {
                 "t_s": t_s, "cycle": self._seq, "inputs": sources,
                 "links": [[status.source, status.connected, status.detail] for status in links],
                 "feedback": [[f.name, f.thrust_n, f.azimuth_rad, f.ready, f.t_s] for f in feedback],
                 "requests": [request_as_dict(r) for r in requests]})
+        stepped_from = clock()
         out = self.controller.step(t_s, measurements, feedback, requests)
+        stepped = clock()
         seq = self._seq
         self._seq += 1
         self._publishers["command"].put(schemas.command_payload(
             t_s=t_s, seq=seq, mode=out.mode.value, names=self._names, thrust_n=out.thrust_n,
             azimuth_rad=out.azimuth_rad, enabled=out.enabled))
-        published = self.clock()
+        published = clock()
+        self.stats.add_phases((stepped_from - t_s) * 1e6, (stepped - stepped_from) * 1e6, (published - stepped) * 1e6)
         self._publish_rest(t_s, seq, out)
         self.pump.health.update_alarms(t_s, self.alarms)
         drives = self._drives.state

@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import InitVar, dataclass, field
 from enum import Enum
 
 from dpcontrol.models.frames import ssa
@@ -78,6 +78,7 @@ class SensorState(str, Enum):
 
 _ALARM_STATES = frozenset({SensorState.STALE, SensorState.FROZEN, SensorState.REJECTED,
                            SensorState.DISCONNECTED})
+_HEALTHY_STATES = (SensorState.OK, SensorState.ISOLATED)  # fused, or voted out by the median test only
 
 
 @dataclass(frozen=True)
@@ -128,9 +129,13 @@ class HubConfig:
     error_rate_window_s: float = 10.0
 
 
-@dataclass
+@dataclass(eq=False, slots=True)
 class _SensorTrack:
+    """One reference's test state. Compared by identity (``eq=False``): the hub compares the lists of
+    references it fused at consecutive steps; slots, because every field is read on every sample."""
+
     config: SensorConfig
+    limits: InitVar[HubConfig]
     state: SensorState = SensorState.WAITING
     last_t_s: float | None = None  # receive time of the last sample (any, accepted or not)
     last_accepted_t_s: float | None = None
@@ -157,11 +162,28 @@ class _SensorTrack:
     rejected_samples: int = 0
     detail: str = ""
     weight: float = 0.0
-    # 1 / nominal rate [s], computed once (read a dozen times per step; the config is frozen)
-    nominal_period_s: float = field(init=False, default=0.0)
+    # Constants of the sensor and hub configurations (both frozen), computed once: read on every sample
+    name: str = field(init=False, default="")
+    heading: bool = field(init=False, default=False)  # a heading reference (angles compared by ssa)
+    nominal_period_s: float = field(init=False, default=0.0)  # 1 / nominal rate [s]
+    stale_s: float = field(init=False, default=0.0)  # stale_periods × period: drop-out, filter restart [s]
+    gst_valid_s: float = field(init=False, default=0.0)  # 3 × stale_periods × period: GST still current [s]
+    continuity_s: float = field(init=False, default=0.0)  # 2.5 × period: residuals consecutive [s]
+    variance_alpha: float = field(init=False, default=0.0)  # EWMA weight of the variance test [-]
+    # the other references of its kind, in the configured order (the variance test's comparison)
+    peers: list[_SensorTrack] = field(init=False, default_factory=list)
 
-    def __post_init__(self) -> None:
-        self.nominal_period_s = 1.0 / self.config.nominal_rate_hz
+    def __post_init__(self, limits: HubConfig) -> None:
+        config = self.config
+        period = 1.0 / config.nominal_rate_hz
+        self.name = config.name
+        self.heading = config.kind is SensorKind.HEADING
+        self.nominal_period_s = period
+        # the products in the order the tests wrote them, so that the limits are the same floats
+        self.stale_s = limits.stale_periods * period
+        self.gst_valid_s = 3.0 * limits.stale_periods * period
+        self.continuity_s = 2.5 * period
+        self.variance_alpha = min(1.0, period / limits.variance_time_constant_s)
 
 
 @dataclass
@@ -211,6 +233,14 @@ class SensorHub:
         Where detections are raised and cleared.
     datum : LocalFrame or None
         Local NED frame; ``None`` → the first valid fix becomes the datum.
+
+    Notes
+    -----
+    The hub runs at the start of every control cycle, after the loop's idle time, when little of it is
+    in the caches: its cost grows with the Python operations it executes. Hence the per-reference
+    limits computed once (:class:`_SensorTrack`), the decay factor recomputed only when the period
+    changes, the prediction-failure search skipped while no reference fails, and alarm texts built
+    only when an alarm changes.
     """
 
     def __init__(self, sensors: Sequence[SensorConfig], config: HubConfig, alarms: AlarmRegistry,
@@ -218,15 +248,16 @@ class SensorHub:
         self.config = config
         self.alarms = alarms
         self.datum = datum
-        self._tracks: dict[str, _SensorTrack] = {s.name: _SensorTrack(s) for s in sensors}
-        self._position = [t for t in self._tracks.values() if t.config.kind is SensorKind.POSITION]
-        self._heading = [t for t in self._tracks.values() if t.config.kind is SensorKind.HEADING]
-        # the other references of each one's kind, in the configured order (the variance test's comparison)
-        self._peers = {name: [t for t in self._tracks.values() if t is not track and t.config.kind is track.config.kind]
-                       for name, track in self._tracks.items()}
+        self._tracks: dict[str, _SensorTrack] = {s.name: _SensorTrack(s, config) for s in sensors}
+        self._all = list(self._tracks.values())
+        self._position = [t for t in self._all if not t.heading]
+        self._heading = [t for t in self._all if t.heading]
+        for track in self._all:
+            track.peers = [t for t in self._all if t is not track and t.heading is track.heading]
         self._out = HubOutput()
-        self._position_set: frozenset[str] = frozenset()
-        self._heading_set: frozenset[str] = frozenset()
+        # the references fused at the last step, in the configured order (empty: none of the kind in use)
+        self._position_used: list[_SensorTrack] = []
+        self._heading_used: list[_SensorTrack] = []
         self._position_offset = [0.0, 0.0]
         self._heading_offset = 0.0
         self._position_seen = False  # a reference of the kind has been fused since start
@@ -242,6 +273,10 @@ class SensorHub:
         self._yaw_rate: float | None = None
         self.unknown_sources = 0
         self._disagree = {"position": False, "heading": False}
+        self._rejecting = False  # some reference has a prediction-test failure pending (see _all_rejecting)
+        self._freeze_limit_s = config.freeze_window_s - 1e-9
+        self._decay_dt = -1.0  # the period the bumpless offsets' decay factor was computed for [s]
+        self._decay = 1.0
 
     # ------------------------------------------------------------------ inputs
     def set_disconnected(self, name: str, disconnected: bool) -> None:
@@ -268,130 +303,160 @@ class SensorHub:
         velocity_n : sequence of 2 floats or None
             Estimated LF velocity in NED [m/s], to move slower references' latest samples to ``t_s``.
         """
-        dt = 0.0 if self._last_update_t_s is None else max(t_s - self._last_update_t_s, 0.0)
+        last = self._last_update_t_s
+        dt = 0.0 if last is None else max(t_s - last, 0.0)
         self._last_update_t_s = t_s
-        for track in self._tracks.values():
+        if dt != self._decay_dt:  # the fade of the bumpless offsets over this period (the same every cycle)
+            self._decay_dt = dt
+            self._decay = math.exp(-dt / self.config.switch_blend_s) if dt > 0.0 else 1.0
+        for track in self._all:
             track.fresh = False
+        tracks = self._tracks
         for measurement in measurements:
-            self._ingest(measurement, predicted_y_n, predicted_variance)
+            track = tracks.get(measurement.source)
+            if track is None:
+                self.unknown_sources += 1
+                continue
+            message = measurement.message
+            if track.heading:
+                if isinstance(message, Heading):
+                    self._common_tests(track, measurement.t_s, (ssa(message.heading_rad), 0.0), predicted_y_n,
+                                       predicted_variance)
+                elif isinstance(message, RateOfTurn):
+                    self._yaw_rate = message.rate_radps
+            elif isinstance(message, PositionFix):
+                self._ingest_position(track, measurement.t_s, message, predicted_y_n, predicted_variance)
+            elif isinstance(message, PositionErrorStats):
+                sigma = _gst_sigma(message.sigma_north_m, message.sigma_east_m)
+                if sigma is not None:
+                    track.gst_sigma = sigma
+                    track.gst_t_s = measurement.t_s
         out = self._out
-        out.position_reset = self._all_rejecting(self._position, t_s)
-        out.heading_reset = self._all_rejecting(self._heading, t_s)
+        if self._rejecting:  # (nothing to search for otherwise: the usual case)
+            out.position_reset = self._all_rejecting(self._position, t_s)
+            out.heading_reset = self._all_rejecting(self._heading, t_s)
+            self._rejecting = any(t.rejecting_since_t_s is not None for t in self._all)
+        else:
+            out.position_reset = out.heading_reset = False
         if out.position_reset:  # no bumpless fade towards a wrong estimate
             self._position_offset = [0.0, 0.0]
-            self._position_set = frozenset()
+            self._position_used = []
             self._position_anchor_until_t_s = -math.inf
         if out.heading_reset:
             self._heading_offset = 0.0
-            self._heading_set = frozenset()
+            self._heading_used = []
             self._heading_anchor_until_t_s = -math.inf
         self._refresh_states(t_s)
         # The healthy references of each kind, once for the median test and the fusion (the median test moves
         # references only between OK and ISOLATED, both healthy: the lists are the same after it).
-        healthy_position = self._healthy(self._position, t_s)
-        healthy_heading = self._healthy(self._heading, t_s)
-        self._median_one(healthy_position, t_s, heading=False)
-        self._median_one(healthy_heading, t_s, heading=True)
+        healthy_position = [t for t in self._position if t.state in _HEALTHY_STATES and
+                            t.last_accepted_t_s is not None and t_s - t.last_accepted_t_s <= t.stale_s]
+        healthy_heading = [t for t in self._heading if t.state in _HEALTHY_STATES and
+                           t.last_accepted_t_s is not None and t_s - t.last_accepted_t_s <= t.stale_s]
+        if len(healthy_position) > 1 or self._disagree["position"]:
+            self._median_one(healthy_position, t_s, heading=False)
+        if len(healthy_heading) > 1 or self._disagree["heading"]:
+            self._median_one(healthy_heading, t_s, heading=True)
         # After a loss the references come back to an estimator that dead-reckoned: its prediction is the
         # anchor the step is faded from (not after a reset, which is there to trust the references).
-        pos_new = self._fuse_position(t_s, dt, velocity_n, None if out.position_reset else predicted_y_n,
+        pos_new = self._fuse_position(t_s, velocity_n, None if out.position_reset else predicted_y_n,
                                       healthy_position)
-        head_new = self._fuse_heading(t_s, dt, None if out.heading_reset else predicted_y_n, healthy_heading)
+        head_new = self._fuse_heading(t_s, None if out.heading_reset else predicted_y_n, healthy_heading)
         out.measured = (pos_new, pos_new, head_new)
         out.yaw_rate_radps = self._yaw_rate
-        self._availability(t_s)
+        # availability: at least one reference of the kind in use; how long none has been
+        position = out.position_available = bool(self._position_used)
+        heading = out.heading_available = bool(self._heading_used)
+        if position:
+            self._position_lost_since = None
+            out.position_lost_s = 0.0
+        else:
+            if self._position_lost_since is None:
+                self._position_lost_since = t_s
+            out.position_lost_s = t_s - self._position_lost_since
+        if heading:
+            self._heading_lost_since = None
+            out.heading_lost_s = 0.0
+        else:
+            if self._heading_lost_since is None:
+                self._heading_lost_since = t_s
+            out.heading_lost_s = t_s - self._heading_lost_since
         return out
-
-    def _ingest(self, measurement: Measurement, predicted: Sequence[float] | None,
-                variance: Sequence[float] | None) -> None:
-        track = self._tracks.get(measurement.source)
-        message = measurement.message
-        if track is None:
-            self.unknown_sources += 1
-            return
-        if isinstance(message, PositionFix) and track.config.kind is SensorKind.POSITION:
-            self._ingest_position(track, measurement.t_s, message, predicted, variance)
-        elif isinstance(message, Heading) and track.config.kind is SensorKind.HEADING:
-            self._ingest_heading(track, measurement.t_s, message.heading_rad, predicted, variance)
-        elif isinstance(message, PositionErrorStats) and track.config.kind is SensorKind.POSITION:
-            sigmas = [s for s in (message.sigma_north_m, message.sigma_east_m) if s is not None and s > 0.0]
-            if sigmas:
-                track.gst_sigma = math.sqrt(sum(s * s for s in sigmas) / len(sigmas))
-                track.gst_t_s = measurement.t_s
-        elif isinstance(message, RateOfTurn) and track.config.kind is SensorKind.HEADING:
-            self._yaw_rate = message.rate_radps
 
     def _nominal_sigma(self, track: _SensorTrack) -> float:
         """1-σ the sensor claims: recent GST statistics, else the configured noise."""
-        if track.gst_sigma is not None and track.gst_t_s is not None and track.last_t_s is not None \
-                and track.last_t_s - track.gst_t_s <= 3.0 * self.config.stale_periods * track.nominal_period_s:
-            return track.gst_sigma
+        gst = track.gst_sigma  # (gst_t_s is set with it)
+        if gst is not None and track.last_t_s is not None and track.last_t_s - track.gst_t_s <= track.gst_valid_s:
+            return gst
         return track.config.sigma
 
     def _sigma(self, track: _SensorTrack) -> float:
         """Current 1-σ of a reference: the larger of the claimed and the measured (variance test) noise."""
         nominal = self._nominal_sigma(track)
-        if track.residual_variance is not None:
-            return math.sqrt(max(track.residual_variance, nominal * nominal))
+        variance = track.residual_variance
+        if variance is not None:
+            return math.sqrt(max(variance, nominal * nominal))
         return nominal
 
     def _ingest_position(self, track: _SensorTrack, t_s: float, fix: PositionFix,
                          predicted: Sequence[float] | None, variance: Sequence[float] | None) -> None:
-        if self.datum is None:
-            self.datum = LocalFrame(fix.lat_deg, fix.lon_deg, 0.0)
-        north, east, _ = self.datum.to_ned(fix.lat_deg, fix.lon_deg, 0.0)
+        datum = self.datum
+        if datum is None:
+            datum = self.datum = LocalFrame(fix.lat_deg, fix.lon_deg, 0.0)
+        north, east, _ = datum.to_ned(fix.lat_deg, fix.lon_deg, 0.0)
         arm_x, arm_y = track.config.lever_arm_m
         if arm_x or arm_y:
-            heading = self._last_heading if self._heading_set else (predicted[2] if predicted else 0.0)
+            heading = self._last_heading if self._heading_used else (predicted[2] if predicted else 0.0)
             d_north, d_east = lever_arm_ned(arm_x, arm_y, heading)
             north -= d_north
             east -= d_east
-        self._common_tests(track, t_s, (north, east), predicted, variance, is_heading=False)
-
-    def _ingest_heading(self, track: _SensorTrack, t_s: float, heading_rad: float,
-                        predicted: Sequence[float] | None, variance: Sequence[float] | None) -> None:
-        self._common_tests(track, t_s, (ssa(heading_rad), 0.0), predicted, variance, is_heading=True)
+        self._common_tests(track, t_s, (north, east), predicted, variance)
 
     def _common_tests(self, track: _SensorTrack, t_s: float, value: tuple[float, float],
-                      predicted: Sequence[float] | None, variance: Sequence[float] | None, *,
-                      is_heading: bool) -> None:
+                      predicted: Sequence[float] | None, variance: Sequence[float] | None) -> None:
+        """Freeze, prediction and variance tests of one sample: NED ``(north_m, east_m)`` or
+        ``(psi_rad, 0)``; an accepted sample updates the reference's low-passed level."""
         cfg = self.config
+        heading = track.heading
+        v0, v1 = value
         track.samples += 1
         track.last_t_s = t_s
         track.value = value
         # Freeze: identical raw values while time advances.
-        tolerance = cfg.freeze_tolerance_rad if is_heading else cfg.freeze_tolerance_m
+        tolerance = cfg.freeze_tolerance_rad if heading else cfg.freeze_tolerance_m
         previous = track.raw_previous
         track.raw_previous = value
-        if previous is not None and abs(_diff(value[0], previous[0], is_heading)) <= tolerance \
-                and abs(value[1] - previous[1]) <= tolerance:
+        if previous is not None and abs(ssa(v0 - previous[0]) if heading else v0 - previous[0]) <= tolerance \
+                and abs(v1 - previous[1]) <= tolerance:
             if track.frozen_since_t_s is None:
                 track.frozen_since_t_s = t_s - track.nominal_period_s
         else:
             track.frozen_since_t_s = None
-        if track.frozen_since_t_s is not None and t_s - track.frozen_since_t_s >= cfg.freeze_window_s - 1e-9:
+        frozen_since = track.frozen_since_t_s
+        if frozen_since is not None and t_s - frozen_since >= self._freeze_limit_s:
             track.rejected_samples += 1
-            track.detail = f"identical values for {t_s - track.frozen_since_t_s:.1f} s"
+            track.detail = f"identical values for {t_s - frozen_since:.1f} s"
             return
+        last_accepted = track.last_accepted_t_s
         # Prediction test against the wave filter (total motion, LF + WF).
         if predicted is not None and variance is not None:
-            if is_heading:
-                residual_value = ssa(value[0] - predicted[2])
-                residual_value2 = 0.0
-                sigma = self._sigma(track)
+            sigma = self._sigma(track)
+            if heading:
+                r0 = ssa(v0 - predicted[2])
+                r1 = 0.0
                 limit = max(cfg.heading_jump_min_rad, cfg.jump_sigma_factor * math.sqrt(variance[2] + sigma * sigma))
-                distance = abs(residual_value)
+                distance = abs(r0)
             else:
-                residual_value = value[0] - predicted[0]
-                residual_value2 = value[1] - predicted[1]
-                sigma = self._sigma(track)
+                r0 = v0 - predicted[0]
+                r1 = v1 - predicted[1]
                 limit = max(cfg.jump_min_m,
                             cfg.jump_sigma_factor * math.sqrt(0.5 * (variance[0] + variance[1]) + sigma * sigma))
-                distance = math.hypot(residual_value, residual_value2)
+                distance = math.hypot(r0, r1)
             if distance > limit:
                 track.rejected_samples += 1
                 if track.rejecting_since_t_s is None:
                     track.rejecting_since_t_s = t_s
+                    self._rejecting = True
                 track.detail = f"prediction test: {distance:.3g} > {limit:.3g}"
                 return
             track.rejecting_since_t_s = None
@@ -399,37 +464,37 @@ class SensorHub:
             # prediction removes the vessel's motion, the second difference what is left of it that is
             # smooth (bias, drift, slow prediction errors), leaving the sensor's white noise
             # (var(r_k − 2r_{k−1} + r_{k−2}) = 6σ²).
-            residual = (residual_value, residual_value2)
-            r1, r2 = track.previous_residual, track.previous_residual2
-            track.previous_residual2 = r1
-            track.previous_residual = residual
-            if r1 is not None and r2 is not None and track.last_accepted_t_s is not None and \
-                    t_s - track.last_accepted_t_s <= 2.5 * track.nominal_period_s:
-                d0 = residual[0] - 2.0 * r1[0] + r2[0]
-                d1 = residual[1] - 2.0 * r1[1] + r2[1]
-                own = d0 * d0 / 6.0 if is_heading else (d0 * d0 + d1 * d1) / 12.0
+            p1 = track.previous_residual
+            p2 = track.previous_residual2
+            track.previous_residual2 = p1
+            track.previous_residual = (r0, r1)
+            if p1 is not None and p2 is not None and last_accepted is not None and \
+                    t_s - last_accepted <= track.continuity_s:
+                d0 = r0 - 2.0 * p1[0] + p2[0]
+                d1 = r1 - 2.0 * p1[1] + p2[1]
+                own = d0 * d0 / 6.0 if heading else (d0 * d0 + d1 * d1) / 12.0
                 # Exponential average over variance_time_constant_s, started as a running mean (weight
                 # 1/n for the n-th sample until that is below the EWMA's): the first squared residual alone
                 # would be a one-sample χ² estimate that keeps the alarm ringing for a time constant.
-                track.variance_samples += 1
-                alpha = max(min(1.0, track.nominal_period_s / cfg.variance_time_constant_s),
-                            1.0 / track.variance_samples)
-                track.residual_variance = own if track.residual_variance is None else \
-                    (1.0 - alpha) * track.residual_variance + alpha * own
+                samples = track.variance_samples = track.variance_samples + 1
+                alpha = max(track.variance_alpha, 1.0 / samples)
+                measured = track.residual_variance
+                track.residual_variance = own if measured is None else (1.0 - alpha) * measured + alpha * own
         else:
             track.previous_residual = track.previous_residual2 = None
         # Low-pass the accepted values for the median test (so noise does not flip it on and off) and for
         # the level of each reference in a bumpless switch. After a gap it restarts as a running mean
         # (weight 1/n until that is below the low-pass weight): one raw sample is no level.
-        gap = None if track.last_accepted_t_s is None else max(t_s - track.last_accepted_t_s, 0.0)
-        if track.filtered is None or gap is None or gap > cfg.stale_periods * track.nominal_period_s:
+        filtered = track.filtered
+        gap = 0.0 if last_accepted is None else max(t_s - last_accepted, 0.0)
+        if filtered is None or last_accepted is None or gap > track.stale_s:
             track.filtered = value
             track.filter_samples = 1
         else:
-            track.filter_samples += 1
-            alpha = max(1.0 - math.exp(-gap / cfg.median_filter_s), 1.0 / track.filter_samples)
-            f0, f1 = track.filtered
-            track.filtered = (f0 + alpha * _diff(value[0], f0, is_heading), f1 + alpha * (value[1] - f1))
+            samples = track.filter_samples = track.filter_samples + 1
+            alpha = max(1.0 - math.exp(-gap / cfg.median_filter_s), 1.0 / samples)
+            f0, f1 = filtered
+            track.filtered = (f0 + alpha * (ssa(v0 - f0) if heading else v0 - f0), f1 + alpha * (v1 - f1))
         track.last_accepted_t_s = t_s
         track.accepted_value = value
         track.fresh = True
@@ -445,11 +510,10 @@ class SensorHub:
         NMEA 2000 headings come in 1e-4 rad steps — is not frozen.
         """
         if all(t.rejecting_since_t_s is None for t in tracks):
-            return False  # the usual case: nothing is being rejected (what the test below concludes then)
+            return False  # nothing of this kind is being rejected (what the test below concludes then)
         persist = self.config.reject_persist_s
         live = [t for t in tracks if t.last_t_s is not None and not t.disconnected and
-                t_s - t.last_t_s <= self.config.stale_periods * t.nominal_period_s and
-                t.state is not SensorState.FROZEN]
+                t_s - t.last_t_s <= t.stale_s and t.state is not SensorState.FROZEN]
         if not live or any(t.rejecting_since_t_s is None or t_s - t.rejecting_since_t_s < persist for t in live):
             return False
         if any(t.last_accepted_t_s is not None and t_s - t.last_accepted_t_s < persist for t in tracks):
@@ -468,37 +532,41 @@ class SensorHub:
 
     # ------------------------------------------------------------------ states and voting
     def _refresh_states(self, t_s: float) -> None:
-        cfg = self.config
-        for track in self._tracks.values():
-            name = track.config.name
+        reject_persist = self.config.reject_persist_s
+        freeze_limit = self._freeze_limit_s
+        for track in self._all:
+            last = track.last_t_s
             if track.disconnected:
                 state = SensorState.DISCONNECTED
-            elif track.last_t_s is None:
+            elif last is None:
                 state = SensorState.WAITING
-            elif t_s - track.last_t_s > cfg.stale_periods * track.nominal_period_s:
+            elif t_s - last > track.stale_s:
                 state = SensorState.STALE
-            elif track.frozen_since_t_s is not None and t_s - track.frozen_since_t_s >= cfg.freeze_window_s - 1e-9:
+            elif track.frozen_since_t_s is not None and t_s - track.frozen_since_t_s >= freeze_limit:
                 state = SensorState.FROZEN
-            elif track.rejecting_since_t_s is not None and t_s - track.rejecting_since_t_s >= cfg.reject_persist_s:
+            elif track.rejecting_since_t_s is not None and t_s - track.rejecting_since_t_s >= reject_persist:
                 state = SensorState.REJECTED
             elif track.state is SensorState.ISOLATED and track.median_fail_since_t_s is not None:
                 state = SensorState.ISOLATED
             else:
                 state = SensorState.OK
             previous = track.state
-            track.state = state
-            if state is SensorState.OK and previous is not SensorState.OK:
-                self._readmit(track, t_s)
             if state is not previous:  # alarms change only with the state (no per-cycle text building)
+                track.state = state
+                if state is SensorState.OK:
+                    self._readmit(track, t_s)
+                name = track.name
                 for alarm_state in (previous, state):
                     if alarm_state in _ALARM_STATES:
                         self.alarms.set(t_s, f"sensor.{name}.{alarm_state.value}", state is alarm_state,
                                         Severity.WARNING, f"{name}: {alarm_state.value} {track.detail}".strip())
-            noisy = self._noisy(track, state)
+            # (a reference alone of its kind has nothing to compare with: never noisy, no per-step search)
+            noisy = self._noisy(track, state) if track.peers else False
             if noisy is not track.noisy:
                 track.noisy = noisy
+                name = track.name
                 self.alarms.set(t_s, f"sensor.{name}.noisy", noisy, Severity.WARNING,
-                                f"{name}: noise above {cfg.variance_alarm_factor:g}× nominal and the other "
+                                f"{name}: noise above {self.config.variance_alarm_factor:g}× nominal and the other "
                                 "references (variance test)")
 
     def _noisy(self, track: _SensorTrack, state: SensorState) -> bool:
@@ -510,10 +578,9 @@ class SensorHub:
         single reference has nothing to compare with, so it gets no alarm — its weight still follows
         its measured variance.
         """
-        peers = self._peers[track.config.name]
-        if not peers or not self._variance_settled(track) or state is not SensorState.OK:
-            return False  # (a reference alone of its kind has nothing to compare with: no per-step search)
-        others = [t.residual_variance for t in peers if self._variance_settled(t) and t.state is SensorState.OK]
+        if state is not SensorState.OK or not self._variance_settled(track):
+            return False
+        others = [t.residual_variance for t in track.peers if t.state is SensorState.OK and self._variance_settled(t)]
         if not others:
             return False
         floor = max(track.config.sigma ** 2, min(others))
@@ -526,8 +593,8 @@ class SensorHub:
         """A reference back to OK is fused only after ``readmit_s`` of good samples, when others of its
         kind are in use: its level (low-passed value) must settle before the bumpless switch measures
         the step to fade. With none in use it is needed at once (the estimator is dead-reckoning)."""
-        in_use = self._position_set if track.config.kind is SensorKind.POSITION else self._heading_set
-        others = in_use - {track.config.name}
+        in_use = self._heading_used if track.heading else self._position_used
+        others = any(t is not track for t in in_use)
         track.usable_from_t_s = t_s + self.config.readmit_s if others else -math.inf
 
     def _variance_settled(self, track: _SensorTrack) -> bool:
@@ -535,12 +602,9 @@ class SensorHub:
         return track.residual_variance is not None and \
             track.variance_samples * track.nominal_period_s >= self.config.variance_time_constant_s
 
-    def _healthy(self, tracks: list[_SensorTrack], t_s: float) -> list[_SensorTrack]:
-        return [t for t in tracks if t.state in (SensorState.OK, SensorState.ISOLATED) and
-                t.last_accepted_t_s is not None and
-                t_s - t.last_accepted_t_s <= self.config.stale_periods * t.nominal_period_s]
-
     def _median_one(self, tracks: list[_SensorTrack], t_s: float, *, heading: bool) -> None:
+        """Median test (≥ 3 references) or disagreement alarm (2); with fewer it only clears that alarm
+        (the caller skips it when there is nothing to clear)."""
         cfg = self.config
         kind = "heading" if heading else "position"
         limit = cfg.median_heading_limit_rad if heading else cfg.median_limit_m
@@ -570,8 +634,8 @@ class SensorHub:
                 isolated = track.state is SensorState.ISOLATED
                 if isolated is not track.isolated_alarm:
                     track.isolated_alarm = isolated
-                    self.alarms.set(t_s, f"sensor.{track.config.name}.isolated", isolated, Severity.WARNING,
-                                    f"{track.config.name}: isolated by the median test")
+                    self.alarms.set(t_s, f"sensor.{track.name}.isolated", isolated, Severity.WARNING,
+                                    f"{track.name}: isolated by the median test")
         elif len(tracks) == 2:
             a, b = tracks
             distance = _distance(a.filtered or a.accepted_value, b.filtered or b.accepted_value, heading)
@@ -591,23 +655,20 @@ class SensorHub:
 
     # ------------------------------------------------------------------ fusion
     def _weights(self, tracks: list[_SensorTrack]) -> list[float]:
-        weights = []
-        for track in tracks:
-            sigma = self._sigma(track)
-            weights.append(1.0 / max(sigma * sigma, 1e-12))
-        return weights
+        """Inverse-variance weights 1/max(σ², 1e-12) of ``tracks`` [1/m², 1/rad²]."""
+        return [1.0 / max(s * s, 1e-12) for s in map(self._sigma, tracks)]
 
-    def _level(self, names: Iterable[str], heading: bool) -> tuple[float, float] | None:
-        """Inverse-variance weighted mean of the low-passed values of the named references: the level
-        the fused output has with that set, without the sample-to-sample noise. ``(north_m, east_m)``,
-        or ``(psi_rad, 0)`` for headings (means of angle differences to the first)."""
-        # in the configured order, not the frozenset's: its order follows the per-process string hash, and
-        # a sum in another order differs in the last bit — replay would no longer be exact
-        tracks = [t for t in self._tracks.values() if t.config.name in names]
-        values = [t.filtered for t in tracks if t.filtered is not None]
-        if not values:
+    def _level(self, tracks: list[_SensorTrack], heading: bool) -> tuple[float, float] | None:
+        """Inverse-variance weighted mean of the low-passed values of ``tracks`` (in the configured order):
+        the level the fused output has with that set, without the sample-to-sample noise.
+        ``(north_m, east_m)``, or ``(psi_rad, 0)`` for headings (means of angle differences to the first)."""
+        # in the configured order: a sum in another order differs in the last bit, and replay would no longer
+        # be exact
+        filtered = [t for t in tracks if t.filtered is not None]
+        if not filtered:
             return None
-        weights = self._weights([t for t in tracks if t.filtered is not None])
+        values = [t.filtered for t in filtered]
+        weights = self._weights(filtered)
         total = sum(weights)
         if heading:
             ref = values[0][0]
@@ -615,123 +676,112 @@ class SensorHub:
         return (sum(w * v[0] for v, w in zip(values, weights, strict=True)) / total,
                 sum(w * v[1] for v, w in zip(values, weights, strict=True)) / total)
 
-    def _fuse_position(self, t_s: float, dt: float, velocity_n: Sequence[float] | None,
-                       anchor: Sequence[float] | None, healthy: list[_SensorTrack]) -> bool:
-        usable = [t for t in healthy if t.state is SensorState.OK and t_s >= t.usable_from_t_s]
+    def _fuse_position(self, t_s: float, velocity_n: Sequence[float] | None, anchor: Sequence[float] | None,
+                       healthy: list[_SensorTrack]) -> bool:
         for track in self._position:
             track.weight = 0.0
+        usable = [t for t in healthy if t.state is SensorState.OK and t_s >= t.usable_from_t_s]
         if not usable:
-            self._position_set = frozenset()
+            self._position_used = []
             return False
         weights = self._weights(usable)
         total = sum(weights)
         vn, ve = (velocity_n[0], velocity_n[1]) if velocity_n is not None else (0.0, 0.0)
         north = east = 0.0
+        fresh = False
         for track, weight in zip(usable, weights, strict=True):
             age = t_s - (track.last_accepted_t_s or t_s)
-            north += weight * (track.accepted_value[0] + vn * age)
-            east += weight * (track.accepted_value[1] + ve * age)
+            value = track.accepted_value
+            north += weight * (value[0] + vn * age)
+            east += weight * (value[1] + ve * age)
             track.weight = weight / total
+            if track.fresh:
+                fresh = True
         north /= total
         east /= total
-        names = frozenset(t.config.name for t in usable)
-        if names != self._position_set and self._position_set:
+        in_use = self._position_used
+        offset = self._position_offset
+        if in_use and usable != in_use:  # (lists of the same tracks in the same order: the same set)
             # Bumpless switch: the step between the levels (low-passed values) of the old and the new set
             # — the bias between references — is added and faded out. Not the step between consecutive
             # outputs: that is mostly one sample's noise, which would then stay as a bias for a blend time.
-            old_level = self._level(self._position_set, heading=False)
-            new_level = self._level(names, heading=False)
+            old_level = self._level(in_use, heading=False)
+            new_level = self._level(usable, heading=False)
             if old_level is not None and new_level is not None:
-                self._position_offset[0] += old_level[0] - new_level[0]
-                self._position_offset[1] += old_level[1] - new_level[1]
-        elif not self._position_set and anchor is not None and self._position_lost_since is not None \
-                and self._position_seen:
+                offset[0] += old_level[0] - new_level[0]
+                offset[1] += old_level[1] - new_level[1]
+        elif not in_use and anchor is not None and self._position_lost_since is not None and self._position_seen:
             # Back after a loss: the output starts at the dead-reckoned prediction and the dead-reckoning
             # error is faded out, rather than corrected by the wave filter within its gain's second or
             # two. The error is measured as the running mean of (prediction − fused) over readmit_s —
             # one sample would leave its noise as a bias for a blend time.
             self._position_anchor_samples = 0
             self._position_anchor_until_t_s = t_s + self.config.readmit_s
-        self._position_set = names
+        self._position_used = usable
         self._position_seen = True
         if t_s < self._position_anchor_until_t_s and anchor is not None:
-            if any(t.fresh for t in usable):
+            if fresh:
                 self._position_anchor_samples += 1
                 weight = 1.0 / self._position_anchor_samples
-                self._position_offset[0] += weight * (anchor[0] - north - self._position_offset[0])
-                self._position_offset[1] += weight * (anchor[1] - east - self._position_offset[1])
+                offset[0] += weight * (anchor[0] - north - offset[0])
+                offset[1] += weight * (anchor[1] - east - offset[1])
         else:
-            decay = math.exp(-dt / self.config.switch_blend_s) if dt > 0.0 else 1.0
-            self._position_offset[0] *= decay
-            self._position_offset[1] *= decay
-        fused_north = north + self._position_offset[0]
-        fused_east = east + self._position_offset[1]
-        self._out.y_n[0] = fused_north
-        self._out.y_n[1] = fused_east
+            decay = self._decay
+            offset[0] *= decay
+            offset[1] *= decay
+        y_n = self._out.y_n
+        y_n[0] = north + offset[0]
+        y_n[1] = east + offset[1]
         self._out.position_sigma_m = 1.0 / math.sqrt(total)
-        return any(t.fresh for t in usable)
+        return fresh
 
-    def _fuse_heading(self, t_s: float, dt: float, anchor: Sequence[float] | None,
-                      healthy: list[_SensorTrack]) -> bool:
-        usable = [t for t in healthy if t.state is SensorState.OK and t_s >= t.usable_from_t_s]
+    def _fuse_heading(self, t_s: float, anchor: Sequence[float] | None, healthy: list[_SensorTrack]) -> bool:
         for track in self._heading:
             track.weight = 0.0
+        usable = [t for t in healthy if t.state is SensorState.OK and t_s >= t.usable_from_t_s]
         if not usable:
-            self._heading_set = frozenset()
+            self._heading_used = []
             return False
         weights = self._weights(usable)
         total = sum(weights)
         ref = usable[0].accepted_value[0]
-        mean_offset = sum(w * ssa(t.accepted_value[0] - ref) for t, w in zip(usable, weights, strict=True)) / total
+        terms = []  # the weighted differences to the first, summed with sum() as before (the same float)
+        fresh = False
         for track, weight in zip(usable, weights, strict=True):
+            terms.append(weight * ssa(track.accepted_value[0] - ref))
             track.weight = weight / total
-        heading = ref + mean_offset
-        names = frozenset(t.config.name for t in usable)
-        if names != self._heading_set and self._heading_set:
-            old_level = self._level(self._heading_set, heading=True)
-            new_level = self._level(names, heading=True)
+            if track.fresh:
+                fresh = True
+        heading = ref + sum(terms) / total
+        in_use = self._heading_used
+        if in_use and usable != in_use:
+            old_level = self._level(in_use, heading=True)
+            new_level = self._level(usable, heading=True)
             if old_level is not None and new_level is not None:
                 self._heading_offset += ssa(old_level[0] - new_level[0])
-        elif not self._heading_set and anchor is not None and self._heading_lost_since is not None \
-                and self._heading_seen:
+        elif not in_use and anchor is not None and self._heading_lost_since is not None and self._heading_seen:
             self._heading_anchor_samples = 0
             self._heading_anchor_until_t_s = t_s + self.config.readmit_s
-        self._heading_set = names
+        self._heading_used = usable
         self._heading_seen = True
         if t_s < self._heading_anchor_until_t_s and anchor is not None:
-            if any(t.fresh for t in usable):
+            if fresh:
                 self._heading_anchor_samples += 1
                 self._heading_offset += ssa(anchor[2] - heading - self._heading_offset) / self._heading_anchor_samples
         else:
-            decay = math.exp(-dt / self.config.switch_blend_s) if dt > 0.0 else 1.0
-            self._heading_offset *= decay
+            self._heading_offset *= self._decay
         fused = ssa(heading + self._heading_offset)
         self._last_heading = fused
         self._out.y_n[2] = fused
-        return any(t.fresh for t in usable)
-
-    def _availability(self, t_s: float) -> None:
-        out = self._out
-        out.position_available = bool(self._position_set)
-        out.heading_available = bool(self._heading_set)
-        if out.position_available:
-            self._position_lost_since = None
-        elif self._position_lost_since is None:
-            self._position_lost_since = t_s
-        if out.heading_available:
-            self._heading_lost_since = None
-        elif self._heading_lost_since is None:
-            self._heading_lost_since = t_s
-        out.position_lost_s = 0.0 if self._position_lost_since is None else t_s - self._position_lost_since
-        out.heading_lost_s = 0.0 if self._heading_lost_since is None else t_s - self._heading_lost_since
+        return fresh
 
     # ------------------------------------------------------------------ reporting
     def sensor_status(self, t_s: float) -> list[dict[str, object]]:
         """Per-sensor health for ``dp/<vessel>/status``."""
         rows = []
-        for track in self._tracks.values():
+        for track in self._all:
             age = None if track.last_t_s is None else round(t_s - track.last_t_s, 3)
-            rows.append({"name": track.config.name, "kind": track.config.kind.value, "state": track.state.value,
+            rows.append({"name": track.name, "kind": track.config.kind.value, "state": track.state.value,
                          "age_s": age, "weight": round(track.weight, 4), "sigma": self._sigma(track),
                          "samples": track.samples, "rejected": track.rejected_samples, "detail": track.detail})
         return rows
@@ -743,8 +793,17 @@ class SensorHub:
         return self._tracks[name].weight
 
 
-def _diff(a: float, b: float, heading: bool) -> float:
-    return ssa(a - b) if heading else a - b
+def _gst_sigma(sigma_north_m: float | None, sigma_east_m: float | None) -> float | None:
+    """RMS of the GST 1-σ position errors that are present and positive [m] (None: none is)."""
+    north = sigma_north_m is not None and sigma_north_m > 0.0
+    east = sigma_east_m is not None and sigma_east_m > 0.0
+    if north and east:
+        return math.sqrt((sigma_north_m * sigma_north_m + sigma_east_m * sigma_east_m) / 2)  # type: ignore[operator]
+    if north:
+        return math.sqrt(sigma_north_m * sigma_north_m)  # type: ignore[operator]
+    if east:
+        return math.sqrt(sigma_east_m * sigma_east_m)  # type: ignore[operator]
+    return None
 
 
 def _distance(a: tuple[float, float], b: tuple[float, float], heading: bool) -> float:

@@ -150,7 +150,8 @@ class DpController:
         horizontal = float(min(jerk[0], jerk[1]))  # a bound for any NED direction
         self._jerk_limit_n = np.array([horizontal, horizontal, float(jerk[2])])
         self._jerk_limit = self._jerk_limit_n.tolist()
-        self._accel_ff_n: np.ndarray | None = None
+        # the acceleration fed forward at the last step [m/s², m/s², rad/s²] (as floats: see _jerk_limited)
+        self._accel_ff_n: tuple[float, float, float] | None = None
         self._mass_sent: tuple[float, float, float] | None = None  # â₂ last given to the wave filter
         # CAPABILITY_FLOOR × the fleet's capability per DOF, as Python floats (constant; _capability_alarm)
         self._capability_floor = (CAPABILITY_FLOOR * self.allocator.capability_scale).tolist()
@@ -170,6 +171,8 @@ class DpController:
         self._fallback_reason = ""
         self._engaged_once = False
         self._shortfall_since: float | None = None
+        self._dead_reckoning_alarm = False  # position.dead_reckoning / heading.lost raised (to be cleared)
+        self._heading_lost_alarm = False
         self._stage_clock = stage_clock
         self.stage_us: dict[str, float] = {}
         rudders = [i for i, t in enumerate(vessel.thrusters) if t.kind == "propeller_rudder"]
@@ -257,11 +260,11 @@ class DpController:
 
         # --- guidance and control
         tau = out.tau_b
-        tau[:] = 0.0
         out.mrac = None
         rudder_command: float | None = None
         if self.mode is Mode.STANDBY or out.estimate is None:
             out.reference = None
+            tau[:] = 0.0
         else:
             estimate = out.estimate
             setpoint = self.setpoint_n
@@ -277,14 +280,16 @@ class DpController:
                                             r_dot_d_radps2=float(reference.eta_ddot_d_n[2]),
                                             tau_bias_n_nm=float(estimate.bias_hat_b[2]))
                 rudder_command = pilot.rudder_rad
-                tau[2] = pilot.tau_n_nm
+                tau[:] = (0.0, 0.0, pilot.tau_n_nm)
             elif self.controller is not None:
                 dofs = HEADING_ONLY if self.mode is Mode.AUTO_HEADING else ALL_DOFS
                 control = self.controller.step(dt, estimate.eta_hat_n, estimate.nu_hat_b, estimate.bias_hat_b,
                                                reference, dof_enabled=dofs)
                 tau[:] = control.tau_b
-                if control.parameters is not None:
-                    out.mrac = dict(control.parameters)
+                parameters = control.parameters
+                if parameters is not None:
+                    # the controller builds a new dict every step: kept as it is (another mapping is copied)
+                    out.mrac = parameters if type(parameters) is dict else dict(parameters)
                 if self._mass_adaptive is not None and not any(self.controller.excited):
                     # only when â₂ changed (it is held between moves): saves an array and the filter's
                     # ratio update on most steps; the same values give the same ratio
@@ -292,6 +297,8 @@ class DpController:
                     if mass != self._mass_sent:
                         self._mass_adaptive.set_mass_estimate(np.array(mass))
                         self._mass_sent = mass
+            else:
+                tau[:] = 0.0
         t3 = clock() if clock else 0.0
 
         # --- thruster health and allocation
@@ -320,22 +327,21 @@ class DpController:
         η̈_d at most at ``(Σ|B|·Ṫmax) / M`` per DOF; pose and velocity references are unchanged (the
         PD terms see the reference move smoothly anyway).
         """
-        accel = reference.eta_ddot_d_n
+        a0, a1, a2 = reference.eta_ddot_d_n.tolist()
         previous = self._accel_ff_n
         if previous is None:
-            self._accel_ff_n = np.array(accel, dtype=float)
+            self._accel_ff_n = (a0, a1, a2)
             return reference
         # per DOF on Python floats (the numpy clip/compare on 3-vectors cost ~3× more); p + min(max(d, −l), l)
         # is np.clip's arithmetic, so the values are the same
-        a = accel.tolist()
-        p = previous.tolist()
+        q0, q1, q2 = previous
         j0, j1, j2 = self._jerk_limit
         l0, l1, l2 = j0 * dt, j1 * dt, j2 * dt
-        p0 = p[0] + min(max(a[0] - p[0], -l0), l0)
-        p1 = p[1] + min(max(a[1] - p[1], -l1), l1)
-        p2 = p[2] + min(max(a[2] - p[2], -l2), l2)
-        previous[:] = (p0, p1, p2)
-        if p0 == a[0] and p1 == a[1] and p2 == a[2]:
+        p0 = q0 + min(max(a0 - q0, -l0), l0)
+        p1 = q1 + min(max(a1 - q1, -l1), l1)
+        p2 = q2 + min(max(a2 - q2, -l2), l2)
+        self._accel_ff_n = (p0, p1, p2)
+        if p0 == a0 and p1 == a1 and p2 == a2:
             return reference
         return Reference(reference.eta_d_n, reference.eta_dot_d_n, np.array((p0, p1, p2)))
 
@@ -383,20 +389,24 @@ class DpController:
             wanted = Mode.AUTO_HEADING if self.autopilot is not None else Mode.AUTO_POSITION
             self._requested_mode = wanted
         # Loss of references.
-        # (the alarm texts are built only while the alarm is active: formatting them every step cost more
-        # than the rest of the mode logic)
+        # (the alarm texts are built only while the alarm is active — formatting them every step cost more
+        # than the rest of the mode logic — and an alarm is cleared only if this controller raised it)
         dead_reckoning = self._estimator_ready and not hub.position_available
         if dead_reckoning and self.mode is Mode.AUTO_POSITION:
             self.alarms.raise_(t_s, "position.dead_reckoning", Severity.ALARM,
                                f"no position reference: dead reckoning for {hub.position_lost_s:.1f} s")
-        else:
+            self._dead_reckoning_alarm = True
+        elif self._dead_reckoning_alarm:
             self.alarms.clear(t_s, "position.dead_reckoning")
+            self._dead_reckoning_alarm = False
         heading_lost = self._estimator_ready and not hub.heading_available
         if heading_lost:
             self.alarms.raise_(t_s, "heading.lost", Severity.ALARM,
                                f"no heading reference for {hub.heading_lost_s:.1f} s")
-        else:
+            self._heading_lost_alarm = True
+        elif self._heading_lost_alarm:
             self.alarms.clear(t_s, "heading.lost")
+            self._heading_lost_alarm = False
         if self.mode is not Mode.STANDBY:
             if heading_lost and hub.heading_lost_s >= fb.heading_loss_limit_s:
                 wanted = Mode.STANDBY if fb.heading_loss == "standby" else Mode.AUTO_HEADING
@@ -457,20 +467,22 @@ class DpController:
         beam wind the stern azimuths miss 2 MN·m of a yaw demand of 0.3 MN·m — the heading is lost — yet
         that is under 10 % of the 34 MN·m the intact fleet could make.
         """
-        s = self.config.thruster_monitor
-        out = self.out
+        # (the alarm is raised only while a shortfall is pending: with none pending there is nothing to clear)
+        since = self._shortfall_since
         if self.mode is Mode.STANDBY:
-            self.alarms.clear(t_s, "thrusters.capability")
-            self._shortfall_since = None
+            if since is not None:
+                self.alarms.clear(t_s, "thrusters.capability")
+                self._shortfall_since = None
             return
         # on Python floats (three numbers; numpy calls cost several times the arithmetic)
+        s = self.config.thruster_monitor
+        out = self.out
         fraction = s.shortfall_fraction
         f0, f1, f2 = self._capability_floor
         t0, t1, t2 = out.tau_b.tolist()
         m0, m1, m2 = out.shortfall_b.tolist()
         short = (abs(m0) > fraction * max(abs(t0), f0) or abs(m1) > fraction * max(abs(t1), f1)
                  or abs(m2) > fraction * max(abs(t2), f2))
-        since = self._shortfall_since
         if short:
             if since is None:
                 self._shortfall_since = t_s
@@ -478,7 +490,7 @@ class DpController:
             if t_s - since >= s.shortfall_persist_s:
                 self.alarms.raise_(t_s, "thrusters.capability", Severity.ALARM,
                                    "thrust demand exceeds the capability of the available thrusters")
-        else:
+        elif since is not None:
             self._shortfall_since = None
             self.alarms.clear(t_s, "thrusters.capability")
 
@@ -497,7 +509,7 @@ class DpController:
         if self.mode is not Mode.STANDBY:
             state["reference"] = self.reference_model.state_dict()
             if self._accel_ff_n is not None:
-                state["accel_ff_n"] = self._accel_ff_n.tolist()
+                state["accel_ff_n"] = list(self._accel_ff_n)
         if self.controller is not None:
             state["controller"] = self.controller.state_dict()
         return state
@@ -525,7 +537,11 @@ class DpController:
         if mode is not Mode.STANDBY and "reference" in state and self._estimator_ready:
             self.reference_model.load_state_dict(state["reference"])
             accel = state.get("accel_ff_n")
-            self._accel_ff_n = None if accel is None else np.array(accel, dtype=float).reshape(3)
+            if accel is None:
+                self._accel_ff_n = None
+            else:
+                a0, a1, a2 = np.array(accel, dtype=float).reshape(3).tolist()
+                self._accel_ff_n = (a0, a1, a2)
             self.mode = mode
             self._requested_mode = mode
             self._engaged_once = True

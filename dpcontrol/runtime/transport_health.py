@@ -103,10 +103,11 @@ class TransportHealth:
         newest = math.floor(t_s / self.bucket_s)
         oldest = newest - self._n + 1
         good = bad = 0
-        for slot in range(self._n):
-            if oldest <= self._slot[slot] <= newest:
-                good += self._good[slot]
-                bad += self._bad[slot]
+        # (called every control cycle: one pass over the ring, no attribute look-up per slot)
+        for index, good_n, bad_n in zip(self._slot, self._good, self._bad, strict=True):
+            if oldest <= index <= newest:
+                good += good_n
+                bad += bad_n
         total = good + bad
         return (bad / total if total else 0.0), bad
 
@@ -138,6 +139,7 @@ class InputHealth:
         self.error_rate_alarm = error_rate_alarm
         self.window_s = window_s
         self.health = {name: TransportHealth(window_s) for name in transports}
+        self._alarm_codes: dict[str, str] = {}  # transport → its error-rate alarm code, built once
 
     def count(self, transport: str, t_s: float, reason: str | None = None) -> None:
         """One frame of ``transport`` at ``t_s``: decoded (``reason`` None) or rejected for ``reason``."""
@@ -158,10 +160,13 @@ class InputHealth:
     def update_alarms(self, t_s: float, alarms: AlarmRegistry) -> None:
         """Raise or clear each transport's error-rate alarm for the window ending at ``t_s``."""
         limit = self.error_rate_alarm
+        codes = self._alarm_codes
         for name, health in self.health.items():
             rate, bad = health.rate(t_s)
             active = rate > limit and bad >= MIN_BAD_FOR_ALARM
-            code = f"transport.{name}.error_rate"
+            code = codes.get(name)
+            if code is None:
+                code = codes[name] = f"transport.{name}.error_rate"
             if active and not alarms.is_active(code):
                 alarms.raise_(t_s, code, Severity.WARNING,
                               f"{name}: {100 * rate:.0f} % of the inputs malformed in the last {self.window_s:g} s "

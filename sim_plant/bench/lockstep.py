@@ -18,7 +18,7 @@ import re
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -150,6 +150,18 @@ class RunResult:
     alarm_events: list[AlarmEvent] = field(default_factory=list)
 
 
+class _SensorPath(NamedTuple):
+    """How one scenario sensor reaches the controller: its transport, protocol, kind (``position`` /
+    ``heading``), encoder, its transport's decoder, and the MAVLink system id (None on other protocols)."""
+
+    transport: str
+    protocol: str
+    kind: str
+    encoder: Any
+    decoder: Any
+    system_id: int | None
+
+
 class _Inputs:
     """The daemon's decoders, router and transport health, fed with the plant's encoded bytes (no transport).
 
@@ -172,11 +184,7 @@ class _Inputs:
         self.nmea: dict[str, Nmea0183Decoder] = {}
         self.n2k: dict[str, N2kDecoder] = {}
         self.mav: dict[str, MavlinkDecoder] = {}
-        self.encoders: dict[str, Any] = {}
-        self.transport_of: dict[str, str] = {}
-        self.protocol_of: dict[str, str] = {}
-        self.kind_of: dict[str, str] = {}
-        self.system_of: dict[str, int] = {}
+        self.paths: dict[str, _SensorPath] = {}
         self.last_valid: dict[str, list[Any]] = {}
         self.rejected = 0
         self.unplugged: set[str] = set()
@@ -196,25 +204,27 @@ class _Inputs:
             if protocol != spec.protocol:
                 raise ValueError(f"sensor {spec.name}: the scenario sends {spec.protocol}, "
                                  f"the controller expects {protocol}")
-            self.transport_of[spec.name] = route.transport
-            self.protocol_of[spec.name] = protocol
-            self.kind_of[spec.name] = "position" if isinstance(spec, GnssSpec) else "heading"
+            encoder: Any
+            decoder: Any
+            system_id = None
             if protocol == "nmea0183":
-                self.nmea.setdefault(route.transport, Nmea0183Decoder())
-                self.encoders[spec.name] = NmeaSensorEncoder(spec.kind, route.talker, route.sentences)
+                decoder = self.nmea.setdefault(route.transport, Nmea0183Decoder())
+                encoder = NmeaSensorEncoder(spec.kind, route.talker, route.sentences)
             elif protocol == "nmea2000":
-                self.n2k.setdefault(route.transport, N2kDecoder())
+                decoder = self.n2k.setdefault(route.transport, N2kDecoder())
                 source = route.source_address if route.source_address is not None else address
                 address = max(address, source) + 1
-                self.encoders[spec.name] = N2kSensorEncoder(source)
+                encoder = N2kSensorEncoder(source)
             else:
-                self.mav.setdefault(route.transport, MavlinkDecoder())
+                decoder = self.mav.setdefault(route.transport, MavlinkDecoder())
                 system_id = route.system_id or 1
-                self.system_of[spec.name] = system_id
                 key = (route.transport, system_id)
                 if key not in self._mav_encoders:  # one autopilot per system id: its sensors share the sequence
                     self._mav_encoders[key] = MavlinkEncoder(system_id, 1)
-                self.encoders[spec.name] = MavlinkSensorEncoder(encoder=self._mav_encoders[key])
+                encoder = MavlinkSensorEncoder(encoder=self._mav_encoders[key])
+            self.paths[spec.name] = _SensorPath(route.transport, protocol,
+                                                "position" if isinstance(spec, GnssSpec) else "heading",
+                                                encoder, decoder, system_id)
         for transport in {route.transport for route in config.routes if protocols[route.transport] == "mavlink"}:
             timeout = float(next(t.settings for t in config.transports if t.name == transport)["heartbeat_timeout_s"])
             self._monitors[transport] = HeartbeatMonitor(timeout, start_t_s=0.0)
@@ -236,13 +246,16 @@ class _Inputs:
     def _apply(self, action: ProtocolFaultAction, t: float) -> None:
         fault = action.fault
         sensor = fault.target
-        transport = self.transport_of.get(sensor)
+        path = self.paths.get(sensor)
         entry: dict[str, Any] = {"t_s": t, "kind": fault.kind, "action": action.action, "target": sensor}
-        if transport is None:
+        if path is None:
             entry["skipped"] = f"{sensor} is not routed to the controller"
-        elif action.action == "burst":
+            self.applied.append(entry)
+            return
+        transport = path.transport
+        if action.action == "burst":
             rng = np.random.default_rng([self._seed, STREAM_BURSTS, action.index])
-            entry["items"] = self._burst(sensor, transport, t, fault.count, rng)
+            entry["items"] = self._burst(sensor, path, t, fault.count, rng)
         elif action.action == "unplug":
             if transport not in self.unplugged:
                 self.unplugged.add(transport)
@@ -252,34 +265,31 @@ class _Inputs:
                 self.unplugged.discard(transport)
                 self.links.append(LinkStatus(t, transport, True, "serial port reopened"))
         else:  # silence: the target's autopilot sends no HEARTBEAT until the fault ends
-            key = (transport, self.system_of[sensor])
+            key = (transport, path.system_id)
             self._silent_until[key] = max(fault.end_s, self._silent_until.get(key, fault.end_s))
         self.applied.append(entry)
 
-    def _burst(self, sensor: str, transport: str, t: float, count: int, rng: np.random.Generator) -> int:
+    def _burst(self, sensor: str, path: _SensorPath, t: float, count: int, rng: np.random.Generator) -> int:
         """Malformed items built from the sensor's latest valid output, through its transport's decoder."""
         last = self.last_valid.get(sensor)
+        transport = path.transport
         if not last or transport in self.unplugged:
             return 0
-        protocol = self.protocol_of[sensor]
-        encoder = self.encoders[sensor]
-        if protocol == "nmea0183":
-            decoder = self.nmea[transport]
+        encoder = path.encoder
+        decoder = path.decoder
+        if path.protocol == "nmea0183":
             for line in nmea0183_burst(encoder.encode(last), count, rng):
-                for frame in decoder.feed_frames(line):
-                    self._count_nmea(transport, t, frame, None)
+                self._decode_nmea(transport, t, decoder, line, None)
             return count
-        if protocol == "nmea2000":
+        if path.protocol == "nmea2000":
             fix = next((m for m in last if isinstance(m, PositionFix)), None)
             fast = [] if fix is None else [encoder.encoder.gnss_position(fix, date_days=DATE_DAYS_SINCE_1970)
                                            for _ in range((count + 2) // 3)]
-            decoder = self.n2k[transport]
-            for frames in n2k_burst(self.kind_of[sensor], encoder.source_address, count, rng, fast):
+            for frames in n2k_burst(path.kind, encoder.source_address, count, rng, fast):
                 for can_id, data in frames:
                     for result in decoder.decode_frame(can_id, data, t):
                         self._count_n2k(transport, t, result, None)
             return count
-        decoder = self.mav[transport]
         for packet in mavlink_burst(encoder.encode(t, last), count, rng):
             for result in decoder.decode_datagram(packet):
                 self._count_mav(transport, t, result, None)
@@ -310,17 +320,22 @@ class _Inputs:
                 self._count_n2k(transport, t, result, None)
 
     # ---------------------------------------------------------------- decoding
-    def _count_nmea(self, transport: str, t: float, frame: Any, out: list[Measurement] | None) -> None:
-        if frame.rejected is not None:
-            self.rejected += 1
-            self.health.count(transport, t, frame.rejected.reason)
-            return
-        self.health.count(transport, t)
-        if out is not None:
-            for message in frame.messages:
-                name = self.router.nmea0183(transport, frame.sentence, message)
-                if name is not None:
-                    out.append(Measurement(t, name, message))
+    def _decode_nmea(self, transport: str, t: float, decoder: Nmea0183Decoder, data: bytes,
+                     out: list[Measurement] | None) -> None:
+        """Decode a chunk of a serial stream; count every frame; route its messages into ``out`` (None: drop)."""
+        health = self.health
+        for frame in decoder.feed_frames(data):
+            rejected = frame.rejected
+            if rejected is not None:
+                self.rejected += 1
+                health.count(transport, t, rejected.reason)
+                continue
+            health.count(transport, t)
+            if out is not None:
+                for message in frame.messages:
+                    name = self.router.nmea0183(transport, frame.sentence, message)
+                    if name is not None:
+                        out.append(Measurement(t, name, message))
 
     def _count_n2k(self, transport: str, t: float, result: Any, out: list[Measurement] | None) -> None:
         if isinstance(result.item, Rejected):
@@ -359,34 +374,38 @@ class _Inputs:
         i = 0
         while i < n:
             first = samples[i]
-            j = i + 1
-            while j < n and samples[j].sensor == first.sensor and samples[j].t_s == first.t_s:
-                j += 1
-            self._group(first.sensor, first.t_s, [s.message for s in samples[i:j]], out)
-            i = j
+            sensor = first.sensor
+            t = first.t_s
+            messages = [first.message]
+            i += 1
+            while i < n and samples[i].sensor == sensor and samples[i].t_s == t:
+                messages.append(samples[i].message)
+                i += 1
+            self._group(sensor, t, messages, out)
 
     def _group(self, sensor: str, t: float, messages: list[Any], out: list[Measurement]) -> None:
-        transport = self.transport_of.get(sensor)
-        if transport is None or transport in self.unplugged:  # an unplugged port delivers nothing
+        path = self.paths.get(sensor)
+        if path is None or path.transport in self.unplugged:  # an unplugged port delivers nothing
             return
-        valid = [m for m in messages if not isinstance(m, InvalidFix)]
-        if valid and len(valid) == len(messages):
-            self.last_valid[sensor] = valid  # what a malformed burst is built from
-        encoder = self.encoders[sensor]
-        protocol = self.protocol_of[sensor]
+        transport = path.transport
+        for message in messages:
+            if isinstance(message, InvalidFix):
+                break
+        else:
+            if messages:
+                self.last_valid[sensor] = messages  # what a malformed burst is built from
+        protocol = path.protocol
         if protocol == "nmea0183":
-            decoder = self.nmea[transport]
-            for sentence in encoder.encode(messages):
-                for frame in decoder.feed_frames(sentence):
-                    self._count_nmea(transport, t, frame, out)
+            for sentence in path.encoder.encode(messages):
+                self._decode_nmea(transport, t, path.decoder, sentence, out)
         elif protocol == "nmea2000":
-            decoder = self.n2k[transport]
-            for can_id, data in encoder.encode(messages):
+            decoder = path.decoder
+            for can_id, data in path.encoder.encode(messages):
                 for result in decoder.decode_frame(can_id, data, t):
                     self._count_n2k(transport, t, result, out)
         else:
-            decoder = self.mav[transport]
-            for packet in encoder.encode(t, messages):
+            decoder = path.decoder
+            for packet in path.encoder.encode(t, messages):
                 for result in decoder.decode_datagram(packet):
                     self._count_mav(transport, t, result, out)
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import pynmea2
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -37,7 +38,7 @@ from interfaces.nmea0183 import (
     encode_rot,
     encode_ths,
 )
-from interfaces.nmea0183.codec import RAW_EXCERPT_BYTES
+from interfaces.nmea0183.codec import RAW_EXCERPT_BYTES, _checksum
 
 # the quantisation of 7 decimals of an arc-minute, in degrees (half a unit), plus float noise
 LATLON_STEP_DEG = 0.5e-7 / 60.0 * (1.0 + 1e-9) + 1e-13
@@ -346,6 +347,52 @@ def test_checksum_is_mandatory_and_verified() -> None:
     wrong = good[:-4] + (b"00" if good[-4:-2] != b"00" else b"01") + b"\r\n"
     assert rejected(decode_sentence(wrong)).reason == "checksum"
     assert rejected(decode_sentence(good[:-3] + b"\r\n")).reason == "malformed"  # '*h'
+
+
+# bodies that pynmea2 parses (talker, proprietary, query sentences), does not know, or refuses, with stray '*'
+_BODY_STARTS = ["GPGGA,", "HETHS,", "HEROT,", "GPGST,", "GPGSV,", "PGRME,", "PGRM", "CCGPQ,GGA", "GPXYZ,", "hehdt,",
+                "GP", "P", "G_GGA,", ""]
+_BODY_CHARS = "0123456789.,-+ *AVNMTPQGEH_ae"
+
+
+@settings(max_examples=1000, deadline=None)
+@given(start=st.sampled_from(_BODY_STARTS), rest=st.text(alphabet=_BODY_CHARS, max_size=40),
+       end=st.sampled_from(["", "*", "*0A", "*1f", "*A", "*zz", " "]), flip=st.sampled_from([0, 0, 0, 1, 0x20, 0xFF]),
+       lower=st.booleans(), encapsulated=st.booleans())
+def test_a_well_framed_sentence_gets_pynmea2s_verdict(start: str, rest: str, end: str, flip: int, lower: bool,
+                                                       encapsulated: bool) -> None:
+    """The decoder verifies the checksum itself before pynmea2 parses the sentence without it: what is
+    rejected as a checksum mismatch or as malformed, and the detail of a mismatch, are still exactly what
+    ``pynmea2.parse(text, check=True)`` says of the whole sentence (``end``: a stray '*hh' that pynmea2 would
+    take for the checksum if the real one were cut off)."""
+    body = start + rest + end
+    checksum = 0
+    for byte in body.encode("ascii"):
+        checksum ^= byte
+    text = f"${body}*{checksum ^ flip:{'02x' if lower else '02X'}}"
+    sentence = ("!" + text[1:]) if encapsulated else text
+    (frame,) = Nmea0183Decoder().feed_frames(sentence.encode("ascii") + b"\r\n")
+    try:
+        pynmea2.parse(text, check=True)
+        verdict = None
+    except pynmea2.ChecksumError as exc:
+        verdict = ("checksum", str(exc.args[0][0]))
+    except pynmea2.SentenceTypeError:
+        verdict = None  # a valid sentence of a type pynmea2 does not know
+    except Exception:
+        verdict = ("malformed", None)
+    if verdict is None:
+        assert frame.rejected is None or frame.rejected.reason not in ("checksum", "malformed")
+    else:
+        assert frame.rejected is not None and frame.rejected.reason == verdict[0]
+        if verdict[1] is not None:
+            assert frame.rejected.detail == verdict[1]
+
+
+@settings(max_examples=300, deadline=None)
+@given(text=st.text(alphabet=st.characters(min_codepoint=0x20, max_codepoint=0x7E), max_size=120))
+def test_the_checksum_is_pynmea2s(text: str) -> None:
+    assert _checksum(text.encode("ascii")) == pynmea2.NMEASentence.checksum(text)
 
 
 def test_talker_ids_are_accepted() -> None:

@@ -213,9 +213,10 @@ def test_close_wakes_a_blocked_read(pty: PtyPair) -> None:
 
 def test_port_is_locked_against_a_second_reader(pty: PtyPair) -> None:
     first = SerialReader(pty.device_path, source="a", clock=lambda: 0.0).start()
+    # the second starts once the first holds the port (started together, either may win the lock)
+    assert first.wait_connected(WAIT_S)
     second = SerialReader(pty.device_path, source="b", clock=lambda: 0.0, reconnect_initial_s=0.01).start()
     try:
-        assert first.wait_connected(WAIT_S)
         assert second.wait_counters(lambda c: c["open_failures"] >= 1, WAIT_S)
         assert "lock" in second.last_error.lower()
     finally:

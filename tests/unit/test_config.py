@@ -10,7 +10,7 @@ import yaml
 
 from dpcontrol.cli import main
 from dpcontrol.models.schema import ConfigError
-from dpcontrol.runtime.config import load_config, parse_config
+from dpcontrol.runtime.config import RealtimeSettings, load_config, parse_config
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = sorted((ROOT / "deploy" / "config").glob("*.yaml"))
@@ -84,6 +84,12 @@ def test_every_shipped_example_validates(capsys: pytest.CaptureFixture[str]) -> 
     (lambda c: c.update(fallback={"position_loss": "panic"}), "fallback.position_loss"),
     (lambda c: c.update(zenoh={"listen": ["0.0.0.0"]}), "zenoh.listen[0]"),
     (lambda c: c.update(loop={"rate_hz": 1000}), "loop.rate_hz"),
+    (lambda c: c.update(loop={"realtime_priority": 0}), "loop.realtime_priority"),
+    (lambda c: c.update(loop={"realtime_priority": 100}), "loop.realtime_priority"),
+    (lambda c: c.update(loop={"realtime_priority": "high"}), "loop.realtime_priority"),
+    (lambda c: c.update(loop={"cpu_affinity": [-1]}), "loop.cpu_affinity"),
+    (lambda c: c.update(loop={"cpu_affinity": 1}), "loop.cpu_affinity"),
+    (lambda c: c.update(loop={"cpu_affinity": []}), "loop.cpu_affinity"),
     (lambda c: c.update(recorder={"flush_s": 5}), "recorder.flush_s"),
     (lambda c: c.update(unknown_section={}), "unknown_section"),
 ])
@@ -127,3 +133,10 @@ def test_daemon_refuses_to_start_on_an_invalid_config(tmp_path: Path, capsys: py
     path.write_text(yaml.safe_dump(broken))
     assert main(["run", "--config", str(path), "--duration", "1"]) == 2
     assert "sensors[1].kind" in capsys.readouterr().err
+
+
+def test_loop_scheduling_settings() -> None:
+    config = copy.deepcopy(BASE)
+    assert parse_config(config).realtime == RealtimeSettings(None, ())
+    config["loop"] = {"rate_hz": 10, "realtime_priority": 50, "cpu_affinity": [1, 0, 1]}
+    assert parse_config(config).realtime == RealtimeSettings(50, (0, 1))

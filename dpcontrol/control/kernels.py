@@ -1,0 +1,404 @@
+"""Compiled per-step kernels of the position controllers: the MRAC-augmented PD (seed 003 eqs. (15)–(25))
+and the nonlinear PID / PD + bias feed-forward.
+
+Why kernels (see :mod:`dpcontrol.jit`): one MRAC step is three SISO loops of a few dozen floating-point
+operations each — the reference model's acceleration, the errors in the vessel-parallel frame, the control
+law, the adaptive law with its gating, dead zone, leakage and projection, and the exact advance of the
+reference model. As Python floats that was ~700 bytecodes and a list or tuple per intermediate, ≈ 30 µs per
+step (≈ 100 µs on the cold caches of a live cycle); the PID's numpy products on 3-vectors cost 30–50 µs.
+Here each is one call.
+
+The functions are the code they replaced, written as loops over the DOFs with the same operations in the
+same order, with two exceptions, both in the last bits:
+
+* the MRAC reference model's transition matrix is the closed form of ``exp(A dt)`` for this step's ``dt``
+  (:func:`reference_transition`) instead of scipy's ``expm`` cached per ``dt``: the cache missed on every
+  step of the live loop, whose measured period jitters by more than its 1e-6 tolerance, and three ``expm``
+  calls cost ≈ 170 µs;
+* the PID's matrix products are sums in index order instead of numpy's ``@`` (BLAS, whose kernels may fuse
+  multiply and add, differently on different machines).
+
+MRAC data layout (C-contiguous float64; built by :class:`~dpcontrol.control.mrac.MracController`, the DOFs
+surge, sway, yaw along the last axis; the PID's layout is given with its constants, above :func:`pid_step`):
+
+* ``const`` (``C_ROWS``, 3): ``C_BETA0`` β₀ = ω_M² [1/s²], ``C_BETA1`` β₁ = 2ζω_M [1/s], ``C_G12`` g₁₂,
+  ``C_G_RATIO`` g₂₂/g₁₂ [s] (eq. (20)), ``C_GAMMA_M``/``C_GAMMA_C`` Γ₁₁, Γ₂₂, ``C_DEAD_ZONE`` d₀
+  [m, m, rad], ``C_ACCEL``/``C_VELOCITY`` the gating thresholds, ``C_A2_LO``/``C_A2_HI``/``C_A1_LO``/
+  ``C_A1_HI`` the projection bounds, ``C_A2_NOMINAL``/``C_A1_NOMINAL`` the nominal parameters,
+  ``C_OMEGA`` ω_M [rad/s] and ``C_ZETA`` ζ of eq. (15), and ``C_FLAGS`` = (σ [1/s], adapt,
+  reference regressor) (1.0 = true);
+* ``state`` (``S_ROWS``, 3): ``S_Y_M``/``S_YD_M`` the reference model y_M, ẏ_M in NED [m, rad; m/s,
+  rad/s], ``S_A2``/``S_A1`` the estimates â₂, â₁, ``S_COMMAND``/``S_ACHIEVED`` the last command and
+  the force the allocator achieved for it [N, N, N·m], and ``S_FLAGS`` = (reference model initialised,
+  achieved force known, unused);
+* ``out`` (``OUT_SIZE``,): ``OUT_TAU`` τ [N, N, N·m], ``OUT_ERROR`` e_b = Rᵀ(ψ̂)(η̂ − y_M) [m, m, rad],
+  ``OUT_VELOCITY_ERROR`` ė_b [m/s, m/s, rad/s] and ``OUT_PARAMETERS`` (â₂, â₁ after the adaptation,
+  y_M before the advance: the order of ``PARAMETER_NAMES + REFERENCE_MODEL_NAMES``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from dpcontrol.jit import UniTuple, f8, f8_1d, f8_2d, i8, kernel
+from dpcontrol.models.frames import ssa_compiled as ssa
+
+C_BETA0, C_BETA1, C_G12, C_G_RATIO, C_GAMMA_M, C_GAMMA_C, C_DEAD_ZONE, C_ACCEL, C_VELOCITY = range(9)
+C_A2_LO, C_A2_HI, C_A1_LO, C_A1_HI, C_A2_NOMINAL, C_A1_NOMINAL, C_OMEGA, C_ZETA, C_FLAGS = range(9, 18)
+C_ROWS = 18
+S_Y_M, S_YD_M, S_A2, S_A1, S_COMMAND, S_ACHIEVED, S_FLAGS = range(7)
+S_ROWS = 7
+OUT_TAU, OUT_ERROR, OUT_VELOCITY_ERROR, OUT_PARAMETERS = 0, 3, 6, 9
+OUT_SIZE = 18
+
+#: :func:`mrac_step`'s return value for an input that is not 3 finite numbers: ``ERROR_INPUT - k`` for the
+#: k-th vector argument (0 η̂, 1 ν̂, 2 b̂, 3 τ̂_wind, 4 η_d); a result >= 0 is the excitation bit mask (bit i:
+#: DOF i) plus ``MASS_CHANGED`` when an estimate â₂ changed.
+ERROR_INPUT = -1
+MASS_CHANGED = 8
+SATURATION_TOLERANCE = 1e-6
+
+
+@kernel(UniTuple(f8, 4)(f8, f8, f8))
+def reference_transition(omega: float, zeta: float, dt: float) -> tuple[float, float, float, float]:
+    """``Φ = exp(A dt)`` of the reference model (15), ``A = [[0, 1], [−ω², −2ζω]]``, in closed form.
+
+    By Cayley–Hamilton ``exp(A t) = e^{−ζωt} (C(t) I + S(t) (A + ζω I))`` with ``C = cos ω_d t``,
+    ``S = sin(ω_d t)/ω_d``, ``ω_d = ω√(1 − ζ²)`` (ζ < 1), ``C = 1, S = t`` (ζ = 1) and
+    ``C = cosh κt``, ``S = sinh(κt)/κ``, ``κ = ω√(ζ² − 1)`` (ζ > 1); each form is continuous in ζ.
+
+    Parameters
+    ----------
+    omega : float
+        ω_M [rad/s] (> 0).
+    zeta : float
+        ζ [-] (> 0).
+    dt : float
+        Sample time [s].
+
+    Returns
+    -------
+    φ₁₁, φ₁₂, φ₂₁, φ₂₂ : float
+        ``[y, ẏ]ₖ₊₁ − [r, 0] = Φ ([y, ẏ]ₖ − [r, 0])`` for a reference ``r`` held over the sample (the
+        model's equilibrium is ``y = r``: the input matrix of the zero-order hold is ``(I − Φ)[1, 0]ᵀ``).
+    """
+    decay = math.exp(-zeta * omega * dt)
+    if zeta < 1.0:
+        rate = omega * math.sqrt(1.0 - zeta * zeta)
+        c = math.cos(rate * dt)
+        s = math.sin(rate * dt) / rate
+    elif zeta > 1.0:
+        rate = omega * math.sqrt(zeta * zeta - 1.0)
+        c = math.cosh(rate * dt)
+        s = math.sinh(rate * dt) / rate
+    else:
+        c = 1.0
+        s = dt
+    damped = zeta * omega * s
+    return decay * (c + damped), decay * s, -omega * omega * decay * s, decay * (c - damped)
+
+
+@kernel(i8(f8_1d))
+def _valid3(v: np.ndarray) -> i8:
+    """1 if ``v`` holds 3 finite numbers, else 0."""
+    if v.size != 3:
+        return 0
+    return 1 if math.isfinite(v[0]) and math.isfinite(v[1]) and math.isfinite(v[2]) else 0
+
+
+@kernel(f8(f8, f8, f8))
+def _clamp(x: float, lo: float, hi: float) -> float:
+    """Python's ``min(max(x, lo), hi)``."""
+    y = lo if lo > x else x
+    return hi if hi < y else y
+
+
+@kernel(i8(f8, f8_1d, f8_1d, f8_1d, f8_1d, f8_1d, i8, f8_2d, f8_2d, f8_1d))
+def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind: np.ndarray, r: np.ndarray,
+              mask: int, const: np.ndarray, state: np.ndarray, out: np.ndarray) -> int:
+    """One MRAC period: control law (17)–(18), adaptive law (21) and the exact advance of model (15).
+
+    Parameters
+    ----------
+    dt : float
+        Sample time [s] (> 0, checked by the caller).
+    eta, nu, bias, wind : ndarray, shape (3,)
+        η̂ in NED [m, m, rad], ν̂ [m/s, m/s, rad/s], b̂ and τ̂_wind in body axes [N, N, N·m].
+    r : ndarray, shape (3,)
+        The guidance's pose η_d driving the reference model (``u_c = k_M r``) [m, m, rad].
+    mask : int
+        Controlled DOFs, bit i for DOF i (surge 1, sway 2, yaw 4).
+    const, state, out : ndarray
+        See the module docstring; ``state`` is updated, ``out`` written.
+
+    Returns
+    -------
+    int
+        The DOFs whose mass adaptation the reference model excited (bit mask) plus ``MASS_CHANGED`` when
+        â₂ changed (>= 0), or ``ERROR_INPUT − k`` when the k-th vector is not 3 finite numbers (nothing
+        changed then).
+    """
+    if _valid3(eta) == 0:
+        return ERROR_INPUT
+    if _valid3(nu) == 0:
+        return ERROR_INPUT - 1
+    if _valid3(bias) == 0:
+        return ERROR_INPUT - 2
+    if _valid3(wind) == 0:
+        return ERROR_INPUT - 3
+    if _valid3(r) == 0:
+        return ERROR_INPUT - 4
+    y_m = state[S_Y_M]
+    yd_m = state[S_YD_M]
+    a2 = state[S_A2]
+    a1 = state[S_A1]
+    c = math.cos(eta[2])
+    s = math.sin(eta[2])
+    if state[S_FLAGS, 0] == 0.0:  # bumpless: the model starts at the estimate, moving as the vessel moves
+        y_m[0] = eta[0]
+        y_m[1] = eta[1]
+        y_m[2] = ssa(eta[2])
+        yd_m[0] = c * nu[0] - s * nu[1]
+        yd_m[1] = s * nu[0] + c * nu[1]
+        yd_m[2] = nu[2]
+        state[S_FLAGS, 0] = 1.0
+    b0 = const[C_BETA0]
+    b1 = const[C_BETA1]
+
+    # reference model (15) with u_c = k_M r: its acceleration at t_k (NED; heading the short way)
+    d0 = r[0] - y_m[0]
+    d1 = r[1] - y_m[1]
+    d2 = ssa(r[2] - y_m[2])
+    ydd0 = b0[0] * d0 - b1[0] * yd_m[0]
+    ydd1 = b0[1] * d1 - b1[1] * yd_m[1]
+    ydd2 = b0[2] * d2 - b1[2] * yd_m[2]
+    # errors and reference in the vessel-parallel frame
+    dn = eta[0] - y_m[0]
+    de = eta[1] - y_m[1]
+    e_b = out[OUT_ERROR:OUT_ERROR + 3]
+    e_b[0] = c * dn + s * de
+    e_b[1] = -s * dn + c * de
+    e_b[2] = ssa(eta[2] - y_m[2])
+    yd_b = np.empty(3)
+    yd_b[0] = c * yd_m[0] + s * yd_m[1]
+    yd_b[1] = -s * yd_m[0] + c * yd_m[1]
+    yd_b[2] = yd_m[2]
+    ydd_b = np.empty(3)
+    ydd_b[0] = c * ydd0 + s * ydd1
+    ydd_b[1] = -s * ydd0 + c * ydd1
+    ydd_b[2] = ydd2
+    ed_b = out[OUT_VELOCITY_ERROR:OUT_VELOCITY_ERROR + 3]
+    z = np.empty(3)
+    tau = out[OUT_TAU:OUT_TAU + 3]
+    for i in range(3):
+        ed_b[i] = nu[i] - yd_b[i]
+        z[i] = ydd_b[i] - b1[i] * ed_b[i] - b0[i] * e_b[i]  # (17)
+        tau[i] = a2[i] * z[i] + a1[i] * nu[i] - bias[i] - wind[i] if (mask >> i) & 1 else 0.0  # (18)
+
+    excited = 0
+    mass_changed = False
+    flags = const[C_FLAGS]
+    if flags[1] != 0.0:  # adapting: eq. (21) with gating, dead zone, optional leakage and projection
+        sigma = flags[0]
+        command = state[S_COMMAND]
+        achieved = state[S_ACHIEVED]
+        known = state[S_FLAGS, 1] != 0.0
+        for i in range(3):
+            if not (mask >> i) & 1:
+                continue
+            if known and abs(achieved[i] - command[i]) > SATURATION_TOLERANCE * (1.0 + abs(command[i])):
+                continue  # the allocator could not deliver the last command: nothing to learn
+            mass_before = a2[i]
+            # normalised error signal s̄ = bᵀGx / g₁₂ with a continuous dead zone, then bᵀGx = g₁₂ s̄_dz
+            s_bar = e_b[i] + const[C_G_RATIO, i] * ed_b[i]
+            excess = abs(s_bar) - const[C_DEAD_ZONE, i]
+            signal = const[C_G12, i] * math.copysign(excess, s_bar) if excess > 0.0 else 0.0
+            # (21), each parameter only while the reference model excites it
+            if flags[2] != 0.0:  # desired-compensation law: v_M = [ÿ_M, ẏ_M] instead of v = [z, ẏ]
+                v2 = ydd_b[i]
+                v1 = yd_b[i]
+            else:
+                v2 = z[i]
+                v1 = nu[i]
+            gate = abs(ydd_b[i]) > const[C_ACCEL, i]
+            if gate:
+                excited |= 1 << i
+            gamma_m = const[C_GAMMA_M, i]
+            gamma_c = const[C_GAMMA_C, i]
+            rate2 = -gamma_m * v2 * signal if gate else 0.0
+            rate1 = -gamma_c * v1 * signal if abs(yd_b[i]) > const[C_VELOCITY, i] else 0.0
+            if sigma > 0.0:
+                # σ-modification â̇ = f − σΓ(â − â_nom), solved exactly over dt with f held constant
+                k = sigma * gamma_m
+                if k > 0.0:
+                    target = const[C_A2_NOMINAL, i] + rate2 / k
+                    a2[i] = target + (a2[i] - target) * math.exp(-k * dt)
+                else:
+                    a2[i] += dt * rate2
+                k = sigma * gamma_c
+                if k > 0.0:
+                    target = const[C_A1_NOMINAL, i] + rate1 / k
+                    a1[i] = target + (a1[i] - target) * math.exp(-k * dt)
+                else:
+                    a1[i] += dt * rate1
+            else:  # no leakage (the default): the plain integral of (21) over the sample
+                a2[i] += dt * rate2
+                a1[i] += dt * rate1
+            # projection onto the physical bounds
+            a2[i] = _clamp(a2[i], const[C_A2_LO, i], const[C_A2_HI, i])
+            a1[i] = _clamp(a1[i], const[C_A1_LO, i], const[C_A1_HI, i])
+            if a2[i] != mass_before:
+                mass_changed = True
+    parameters = out[OUT_PARAMETERS:]
+    for i in range(3):
+        state[S_COMMAND, i] = tau[i]
+        parameters[i] = a2[i]
+        parameters[3 + i] = a1[i]
+        parameters[6 + i] = y_m[i]
+
+    # advance the reference model over the sample (exact ZOH discretisation of (15)), about its
+    # equilibrium r (the heading unwrapped next to y_M)
+    for i in range(3):
+        p11, p12, p21, p22 = reference_transition(const[C_OMEGA, i], const[C_ZETA, i], dt)
+        d = d0 if i == 0 else (d1 if i == 1 else d2)
+        target = y_m[i] + d
+        y_new = target + (p12 * yd_m[i] - p11 * d)
+        yd_m[i] = p22 * yd_m[i] - p21 * d
+        y_m[i] = y_new
+    y_m[2] = ssa(y_m[2])
+    return excited | MASS_CHANGED if mass_changed else excited
+
+
+# ---------------------------------------------------------------------- nonlinear PID / PD + bias feed-forward
+# PID layouts (built by :class:`~dpcontrol.control.pid.PidController`): ``gains`` (``G_ROWS``, 3) holds the
+# matrices K_P, K_D, K_I, M, D (three rows each from ``G_KP``, ``G_KD``, ``G_KI``, ``G_MASS``, ``G_DAMPING``),
+# the back-calculation gains 1/T_t [1/s] (``G_TRACKING``) and the integral limits [N, N, N·m] (``G_LIMIT``);
+# ``structure`` bits ``P_INTEGRATOR``, ``P_MASS``, ``P_DAMPING``, ``P_LIMIT`` say which are in use;
+# ``pid_state`` (``P_ROWS``, 3): ``P_INTEGRAL`` τ_I, ``P_COMMAND`` the last command, ``P_ACHIEVED`` the force the
+# allocator achieved for it and ``P_FLAGS`` = (achieved force known, unused, unused); ``pid_out`` (9,): τ, e_b, ė_b.
+G_KP, G_KD, G_KI, G_MASS, G_DAMPING, G_TRACKING, G_LIMIT = 0, 3, 6, 9, 12, 15, 16
+G_ROWS = 17
+P_INTEGRATOR, P_MASS, P_DAMPING, P_LIMIT = 1, 2, 4, 8
+P_INTEGRAL, P_COMMAND, P_ACHIEVED, P_FLAGS = range(4)
+P_ROWS = 4
+PID_OUT_SIZE = 9
+
+
+@kernel(f8(f8_2d, i8, i8, f8, f8, f8))
+def _row_product(matrix: np.ndarray, first: int, i: int, x0: float, x1: float, x2: float) -> float:
+    """Row ``i`` of the 3×3 block at ``matrix[first:first + 3]`` times ``x`` (sum in index order)."""
+    row = first + i
+    return matrix[row, 0] * x0 + matrix[row, 1] * x1 + matrix[row, 2] * x2
+
+
+@kernel(i8(f8, f8_1d, f8_1d, f8_1d, f8_1d, f8_1d, f8_1d, f8_1d, i8, i8, f8_2d, f8_2d, f8_1d))
+def pid_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind: np.ndarray, eta_d: np.ndarray,
+             eta_dot_d: np.ndarray, eta_ddot_d: np.ndarray, mask: int, structure: int, gains: np.ndarray,
+             state: np.ndarray, out: np.ndarray) -> int:
+    """One PID period (:mod:`dpcontrol.control.pid`): errors in the vessel-parallel frame, the control law and
+    the integral force with conditional integration and back-calculation (anti-windup).
+
+    Parameters
+    ----------
+    dt : float
+        Time since the previous step [s] (> 0, checked by the caller).
+    eta, nu : ndarray, shape (3,)
+        η̂ in NED [m, m, rad] and ν̂ [m/s, m/s, rad/s].
+    bias, wind : ndarray, shape (3,)
+        b̂ (compensated without the integrator) and τ̂_wind in body axes [N, N, N·m] (zeros when not given:
+        subtracting 0.0 leaves every float as it is).
+    eta_d, eta_dot_d, eta_ddot_d : ndarray, shape (>= 3,)
+        The guidance's reference in NED (its first three entries).
+    mask : int
+        Controlled DOFs, bit i for DOF i.
+    structure : int
+        ``P_*`` bits of the configuration.
+    gains, state, out : ndarray
+        Layouts above; ``state`` is updated, ``out`` written.
+
+    Returns
+    -------
+    int
+        0, or ``ERROR_INPUT − k`` when the k-th of η̂, ν̂, b̂, τ̂_wind is not 3 finite numbers and
+        ``ERROR_INPUT − 4`` when a reference vector is shorter than 3 (nothing changed then).
+
+    Notes
+    -----
+    The matrix products are sums in index order; numpy's ``@`` called BLAS, whose kernels may fuse
+    multiply and add, so τ can differ from that code in the last bits.
+    """
+    if _valid3(eta) == 0:
+        return ERROR_INPUT
+    if _valid3(nu) == 0:
+        return ERROR_INPUT - 1
+    if _valid3(bias) == 0:
+        return ERROR_INPUT - 2
+    if _valid3(wind) == 0:
+        return ERROR_INPUT - 3
+    if eta_d.size < 3 or eta_dot_d.size < 3 or eta_ddot_d.size < 3:
+        return ERROR_INPUT - 4
+    # e_b = Rᵀ(ψ̂)(η̂ − η_d), ν_d = Rᵀ(ψ̂)η̇_d, ν̇_d ≈ Rᵀ(ψ̂)η̈_d, ė_b = ν̂ − ν_d (seed 002 eq. (14); low-speed DP:
+    # the S(r)ν_d term of ν̇_d dropped)
+    psi = eta[2]
+    c = math.cos(psi)
+    s = math.sin(psi)
+    dn = eta[0] - eta_d[0]
+    de = eta[1] - eta_d[1]
+    e0 = c * dn + s * de
+    e1 = -s * dn + c * de
+    e2 = ssa(psi - eta_d[2])
+    v0 = c * eta_dot_d[0] + s * eta_dot_d[1]
+    v1 = -s * eta_dot_d[0] + c * eta_dot_d[1]
+    v2 = eta_dot_d[2]
+    w0 = c * eta_ddot_d[0] + s * eta_ddot_d[1]
+    w1 = -s * eta_ddot_d[0] + c * eta_ddot_d[1]
+    w2 = eta_ddot_d[2]
+    ed0 = nu[0] - v0
+    ed1 = nu[1] - v1
+    ed2 = nu[2] - v2
+    integral = state[P_INTEGRAL]
+    if structure & P_INTEGRATOR:
+        # τ̇_I = −K_I e_b, with conditional integration and back-calculation towards the achieved force
+        command = state[P_COMMAND]
+        achieved = state[P_ACHIEVED]
+        known = state[P_FLAGS, 0] != 0.0
+        for i in range(3):
+            increment = -_row_product(gains, G_KI, i, e0, e1, e2) * dt
+            if known:
+                shortfall = achieved[i] - command[i]
+                if abs(shortfall) > SATURATION_TOLERANCE * (1.0 + abs(command[i])):
+                    # conditional integration: no further integration into the saturated direction
+                    if increment * command[i] > 0.0:
+                        increment = 0.0
+                    increment += dt * gains[G_TRACKING, i] * shortfall
+            integral[i] += increment
+            if structure & P_LIMIT:  # np.clip: NaN propagates
+                limit = gains[G_LIMIT, i]
+                value = integral[i]
+                value = value if (value >= -limit or math.isnan(value)) else -limit
+                integral[i] = value if (value <= limit or math.isnan(value)) else limit
+    for i in range(3):
+        tau = -_row_product(gains, G_KP, i, e0, e1, e2) - _row_product(gains, G_KD, i, ed0, ed1, ed2)
+        if structure & P_MASS:
+            tau += _row_product(gains, G_MASS, i, w0, w1, w2)
+        if structure & P_DAMPING:
+            tau += _row_product(gains, G_DAMPING, i, v0, v1, v2)
+        if structure & P_INTEGRATOR:
+            tau += integral[i]
+        else:
+            tau -= bias[i]
+        tau -= wind[i]
+        if not (mask >> i) & 1:
+            tau = 0.0
+            integral[i] = 0.0
+        out[i] = tau
+        state[P_COMMAND, i] = tau
+    out[3] = e0
+    out[4] = e1
+    out[5] = e2
+    out[6] = ed0
+    out[7] = ed1
+    out[8] = ed2
+    return 0
