@@ -28,7 +28,7 @@ import math
 
 import numpy as np
 
-from dpcontrol.jit import UniTuple, f8, f8_1d, f8_2d, i8, kernel, void
+from dpcontrol.jit import UniTuple, b1_1d, f8, f8_1d, f8_2d, i8, i8_1d, kernel, void
 from dpcontrol.models.frames import ssa_compiled as ssa
 
 i8_2d = i8[:, ::1]  # C-contiguous int64 2-D (the drive codes)
@@ -66,6 +66,9 @@ DRIVE_STATE = ("thrust", "angle", "target_thrust", "target_angle", "command_time
 S_THRUST, S_ANGLE, S_TARGET_THRUST, S_TARGET_ANGLE, S_COMMAND_TIME, S_ALPHA = range(len(DRIVE_STATE))
 DRIVE_CODES = ("kind", "failure")
 K_KIND, K_FAILURE = range(len(DRIVE_CODES))
+DRIVE_LIMITS = ("min_thrust", "max_thrust", "rudder_max")  # command saturation [N, N, rad] (inf: none)
+L_MIN_THRUST, L_MAX_THRUST, L_RUDDER_MAX = range(len(DRIVE_LIMITS))
+COMMAND_OK = -1  # drives_command applied everything
 DRIVE_BANK = ("alpha_h", "lost", "timeout")  # the substep ``alpha`` is for, 1.0 when lost, timeout [s]
 B_ALPHA_H, B_LOST, B_TIMEOUT = range(len(DRIVE_BANK))
 
@@ -333,6 +336,55 @@ def drives_update(const: np.ndarray, state: np.ndarray, codes: np.ndarray, bank:
         elif err < -step:
             err = -step
         state[S_ANGLE, i] = ssa(angle + err) if kind == AZIMUTH else angle + err
+
+
+@kernel(i8(f8_2d, f8_2d, i8_2d, i8_1d, f8_1d, f8_1d, b1_1d, f8))
+def drives_command(state: np.ndarray, limits: np.ndarray, codes: np.ndarray, order: np.ndarray, thrust: np.ndarray,
+                   azimuth: np.ndarray, enabled: np.ndarray, t: float) -> int:
+    """Apply one command per drive, all or nothing (:meth:`sim_plant.thrusters.ThrusterDrives.command_arrays`).
+
+    Entry ``j`` commands drive ``order[j]``: target thrust ``thrust[j]`` saturated to the drive's limits
+    (0 when not ``enabled[j]``), target angle ``azimuth[j]`` (wrapped for an azimuth, limited to ±δ_max for a
+    rudder, ignored otherwise), command time ``t``. The comparisons are those of ``min(high, max(low, x))``
+    in Python (the first argument wins ties), so the targets are the ones ``ThrusterDrives.command`` sets.
+
+    Parameters
+    ----------
+    state : drive state (targets and command time written in place)
+    limits : (len(DRIVE_LIMITS), n) saturation; codes : drive kinds
+    order, thrust, azimuth, enabled : (m,) per command
+    t : command time [s]
+
+    Returns
+    -------
+    int
+        :data:`COMMAND_OK`, or the first entry that is not a finite thrust and angle (or ``m`` when the
+        arrays differ in length); nothing is written then.
+    """
+    m = order.size
+    if thrust.size != m or azimuth.size != m or enabled.size != m:
+        return m
+    for j in range(m):
+        if not (math.isfinite(thrust[j]) and math.isfinite(azimuth[j])):
+            return j
+    for j in range(m):
+        i = order[j]
+        if enabled[j]:
+            low = limits[L_MIN_THRUST, i]
+            high = limits[L_MAX_THRUST, i]
+            value = thrust[j] if thrust[j] > low else low
+            state[S_TARGET_THRUST, i] = value if value < high else high
+        else:
+            state[S_TARGET_THRUST, i] = 0.0
+        kind = codes[K_KIND, i]
+        if kind == AZIMUTH:
+            state[S_TARGET_ANGLE, i] = ssa(azimuth[j])
+        elif kind == RUDDER:
+            high = limits[L_RUDDER_MAX, i]
+            value = azimuth[j] if azimuth[j] > -high else -high
+            state[S_TARGET_ANGLE, i] = value if value < high else high
+        state[S_COMMAND_TIME, i] = t
+    return COMMAND_OK
 
 
 @kernel(void(f8_2d, i8_2d, f8_2d))

@@ -37,7 +37,7 @@ import numpy as np
 from dpcontrol.models.frames import ssa
 from interfaces.geodesy import LocalFrame
 from sim_plant.environment.current import CurrentModel
-from sim_plant.environment.waves import CALM, WaveEnvironment, WaveSample
+from sim_plant.environment.waves import CALM, SpectrumPeaks, WaveEnvironment, WaveSample
 from sim_plant.environment.wind import WindModel
 from sim_plant.faults import THRUSTER_FAULTS, Fault
 from sim_plant.kernels import NO_DRIVE, plant_substep
@@ -209,6 +209,8 @@ class Plant:
         self._env_period = max(self._h, ENV_PERIOD_S)
         self._env_next = 0.0
         self._truth_cache: PlantTruth | None = None
+        self._surge_mass_factor = math.nan  # the mass factor self._surge_mass is M11 of (record_values)
+        self._surge_mass = math.nan
         self._next_event = math.inf
         self._process_events(0.0)
 
@@ -227,6 +229,19 @@ class Plant:
             Nothing of an invalid command is applied.
         """
         self.drives.command(t_s, commands)
+        self._truth_cache = None
+
+    def command_arrays(self, t_s: float, order: np.ndarray, thrust_n: np.ndarray, azimuth_rad: np.ndarray,
+                       enabled: np.ndarray) -> None:
+        """:meth:`command` from per-drive arrays, entry ``j`` for drive ``order[j]`` (an index into
+        ``drives.names``): see :meth:`sim_plant.thrusters.ThrusterDrives.command_arrays`.
+
+        Raises
+        ------
+        sim_plant.thrusters.CommandError
+            Nothing of an invalid command is applied.
+        """
+        self.drives.command_arrays(t_s, order, thrust_n, azimuth_rad, enabled)
         self._truth_cache = None
 
     def command_lost(self, t_s: float) -> None:
@@ -357,24 +372,11 @@ class Plant:
         psi = x[2]
         c = math.cos(psi)
         s = math.sin(psi)
-        tau = self.drives.force_b(self._rudder)
-        if self._rudder >= 0:
-            rudder = float(self.drives.angle[self._rudder])
-            dv = self.model.derivatives  # type: ignore[union-attr]
-            length = self.scenario.vessel.length_m
-            speed2 = self.model.surge_speed_mps ** 2  # type: ignore[union-attr]
-            q = 0.5 * self.scenario.vessel.water_density_kgpm3 * length**2 * speed2
-            y_d = q * dv.y_d * rudder
-            n_d = q * length * dv.n_d * rudder
-            tau = (tau[0] + self.drives.delivered_thrust(self._rudder), tau[1] + y_d, tau[2] + n_d)
+        tau = self._tau_act()
         wind_env = self.wind.force_b(t, psi, x[3], x[4])
         drift = wave.drift_b
         cn, ce = self.current.velocity_ned(t)
-        north_rate = c * x[3] - s * x[4]
-        east_rate = s * x[3] + c * x[4]
-        prop = self.waves.propagation_rad(t)
-        along = 0.0 if prop is None else north_rate * math.cos(prop) + east_rate * math.sin(prop)
-        peaks = self.waves.peaks(t, psi, along)
+        peaks = self._peaks(t, psi, x[3], x[4])
         model = self.model
         truth = PlantTruth(
             t_s=t,
@@ -396,9 +398,74 @@ class Plant:
         self._truth_cache = truth
         return truth
 
+    def record_values(self) -> tuple[float, ...]:
+        """The fields of :attr:`truth` a lockstep time-series row keeps, computed alone (the same numbers).
+
+        Returns
+        -------
+        tuple
+            ``t_s, north_m, east_m, heading_rad, north_total_m, east_total_m, heading_total_rad, surge_mps,
+            sway_mps, yaw_rate_radps, tau_act_b[0], tau_act_b[1], tau_act_b[2], omega_peak_rad_s,
+            motion_peak_rad_s, mass_factor, surge_mass_kg`` (the peaks None in calm water).
+
+        Notes
+        -----
+        Called once per control step, it skips what a row does not keep (wind force, current, wind speed,
+        the WF motion fields) and the :class:`PlantTruth` object, and reads the surge mass from a cache that
+        follows the mass factor (M11 changes only with it; reading it from the mass matrix costs a numpy
+        item per step).
+        """
+        truth = self._truth_cache
+        if truth is not None:  # built already this step: the same values
+            tau = truth.tau_act_b
+            return (truth.t_s, truth.north_m, truth.east_m, truth.heading_rad, truth.north_total_m,
+                    truth.east_total_m, truth.heading_total_rad, truth.surge_mps, truth.sway_mps,
+                    truth.yaw_rate_radps, tau[0], tau[1], tau[2], truth.omega_peak_rad_s, truth.motion_peak_rad_s,
+                    truth.mass_factor, truth.surge_mass_kg)
+        t = self._t
+        north, east, psi, u, v, r = self._x.tolist()
+        wave = self._waves_at(t)
+        c = math.cos(psi)
+        s = math.sin(psi)
+        tx, ty, tn = self._tau_act()
+        peaks = self._peaks(t, psi, u, v)
+        model = self.model
+        factor = model.mass_factor
+        if factor != self._surge_mass_factor:
+            self._surge_mass = model.surge_mass_kg
+            self._surge_mass_factor = factor
+        return (t, north, east, ssa(psi), north + c * wave.surge_m - s * wave.sway_m,
+                east + s * wave.surge_m + c * wave.sway_m, ssa(psi + wave.yaw_rad), u, v, r, tx, ty, tn,
+                peaks.omega_peak_rad_s, peaks.motion_peak_rad_s, factor, self._surge_mass)
+
+    def _tau_act(self) -> tuple[float, float, float]:
+        """Force delivered by the thrusters (with the mariner's rudder force from its derivatives)."""
+        tau = self.drives.force_b(self._rudder)
+        if self._rudder >= 0:
+            rudder = float(self.drives.angle[self._rudder])
+            dv = self.model.derivatives  # type: ignore[union-attr]
+            length = self.scenario.vessel.length_m
+            speed2 = self.model.surge_speed_mps ** 2  # type: ignore[union-attr]
+            q = 0.5 * self.scenario.vessel.water_density_kgpm3 * length**2 * speed2
+            y_d = q * dv.y_d * rudder
+            n_d = q * length * dv.n_d * rudder
+            tau = (tau[0] + self.drives.delivered_thrust(self._rudder), tau[1] + y_d, tau[2] + n_d)
+        return tau
+
+    def _peaks(self, t: float, psi: float, u: float, v: float) -> SpectrumPeaks:
+        """Wave and motion peaks for heading ``psi`` and LF velocity ``u, v`` at ``t``."""
+        c = math.cos(psi)
+        s = math.sin(psi)
+        return self.waves.peaks_for_velocity(t, psi, c * u - s * v, s * u + c * v)
+
     def feedback(self) -> list[ThrusterFeedback]:
         """Per-thruster feedback: delivered thrust, actual azimuth/rudder angle, ready."""
         return self.drives.feedback()
+
+    def feedback_values(self) -> tuple[list[float], list[float], list[bool]]:
+        """:meth:`feedback` as three lists in ``drives.names`` order (delivered thrust, angle, ready; see
+        :meth:`sim_plant.thrusters.ThrusterDrives.feedback_values`)."""
+        return self.drives.feedback_values()
 
     def sensor_samples(self, t_s_end: float) -> list[SensorSample]:
         """All sensor samples due up to and including ``t_s_end``, in time order (advancing the plant

@@ -40,6 +40,7 @@ import bisect
 import copy
 import itertools
 import math
+import operator
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from importlib import resources
@@ -90,6 +91,9 @@ class ReadOnlyMapping(Mapping[str, Any]):
 
     def __reduce__(self) -> tuple[Any, ...]:
         return (ReadOnlyMapping, (self._data,))
+
+
+_POINT_TIME = operator.attrgetter("t_s")  # the time of a schedule point (MassPoint)
 
 
 @dataclass(frozen=True)
@@ -205,7 +209,8 @@ class Scenario:
             return points[0].factor
         if t_s >= points[-1].t_s:
             return points[-1].factor
-        i = bisect.bisect_right([p.t_s for p in points], t_s)
+        # (bisect on the points' times directly: the plant asks every substep, a list of the times costs more)
+        i = bisect.bisect_right(points, t_s, key=_POINT_TIME)
         a, b = points[i - 1], points[i]
         return a.factor + (b.factor - a.factor) * (t_s - a.t_s) / (b.t_s - a.t_s)
 

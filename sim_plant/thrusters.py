@@ -42,6 +42,7 @@ from sim_plant.kernels import (
     B_ALPHA_H,
     B_LOST,
     B_TIMEOUT,
+    COMMAND_OK,
     DRIVE_BANK,
     DRIVE_CODES,
     DRIVE_CONSTANTS,
@@ -62,6 +63,7 @@ from sim_plant.kernels import (
     TUNNEL,
     WRONG_SIGN,
     ZERO,
+    drives_command,
     drives_feedback,
     drives_force,
     drives_update,
@@ -158,6 +160,7 @@ class ThrusterDrives:
         self._state = np.zeros((len(DRIVE_STATE), n))
         self._codes = np.zeros((len(DRIVE_CODES), n), dtype=np.int64)
         self._codes[K_KIND] = self._kind
+        self._limits = np.array([self._min, self._max, self._rudder_max])  # DRIVE_LIMITS rows (drives_command)
         self._bank = np.zeros(len(DRIVE_BANK))  # not lost
         self._bank[B_ALPHA_H] = -1.0  # no substep yet
         self._bank[B_TIMEOUT] = timeout_s
@@ -228,6 +231,44 @@ class ThrusterDrives:
             command_time[i] = t
         self._bank_view[B_LOST] = 0.0
 
+    def command_arrays(self, t_s: float, order: np.ndarray, thrust_n: np.ndarray, azimuth_rad: np.ndarray,
+                       enabled: np.ndarray) -> None:
+        """:meth:`command` from per-drive arrays: entry ``j`` commands drive ``order[j]``.
+
+        The same as ``command(t_s, {names[order[j]]: ThrusterCommand(thrust_n[j], azimuth_rad[j], enabled[j])})``
+        (with the values as Python floats and bools), in one kernel call (:func:`sim_plant.kernels.drives_command`)
+        instead of a command object and a Python check per drive: the lockstep loop commands every drive every
+        step from the controller's arrays. Anything the kernel does not take (a non-finite value, arrays of
+        other types or lengths) goes through :meth:`command` itself, so what is rejected, and the message, stay
+        the same.
+
+        Parameters
+        ----------
+        t_s : float
+        order : ndarray of int64, shape (m,)
+            Drive index (into :attr:`names`) of each entry.
+        thrust_n, azimuth_rad : ndarray of float64, shape (m,)
+        enabled : ndarray of bool, shape (m,)
+
+        Raises
+        ------
+        CommandError
+            As :meth:`command`; nothing is applied then.
+        """
+        if type(t_s) is float and math.isfinite(t_s):
+            try:
+                done = drives_command(self._state, self._limits, self._codes, order, thrust_n, azimuth_rad, enabled,
+                                      t_s) == COMMAND_OK
+            except TypeError:  # not arrays of the kernel's types: the general path converts or rejects them
+                done = False
+            if done:
+                self._bank_view[B_LOST] = 0.0
+                return
+        names = self.names
+        self.command(t_s, {names[i]: ThrusterCommand(thrust, azimuth, on) for i, thrust, azimuth, on in
+                           zip(np.asarray(order).tolist(), np.asarray(thrust_n).tolist(),
+                               np.asarray(azimuth_rad).tolist(), np.asarray(enabled).tolist(), strict=True)})
+
     def _problem(self, name: str, cmd: object) -> str | None:
         """What is wrong with one thruster's command (None: nothing)."""
         if name not in self._index:
@@ -282,11 +323,20 @@ class ThrusterDrives:
 
     def feedback(self) -> list[ThrusterFeedback]:
         """Per-drive feedback (delivered thrust, actual angle, ready)."""
+        thrusts, angles, ready = self.feedback_values()
+        return [ThrusterFeedback(name, thrust, angle, ok)
+                for name, thrust, angle, ok in zip(self.names, thrusts, angles, ready, strict=True)]
+
+    def feedback_values(self) -> tuple[list[float], list[float], list[bool]]:
+        """What :meth:`feedback` reports, as three lists in :attr:`names` order: delivered thrust [N], actual
+        angle [rad], ready (for a caller that builds its own feedback objects: no intermediate one per drive).
+
+        The lists are new, except ``ready``, which is the drives' own (read it, do not change it).
+        """
         out = self._feedback
         drives_feedback(self._state, self._codes, out)
         thrusts, angles = out.tolist()
-        return [ThrusterFeedback(name, thrust, angle, ready)
-                for name, thrust, angle, ready in zip(self.names, thrusts, angles, self._ready, strict=True)]
+        return thrusts, angles, self._ready
 
     def index(self, name: str) -> int:
         return self._index[name]

@@ -167,6 +167,10 @@ class DpController:
         self._valid_since_t_s: float | None = None
         self._last_t_s: float | None = None
         self._tau_input_b = np.zeros(3)
+        self._y_n = np.zeros(3)  # the hub's fused measurement as the estimator takes it [m, m, rad] (see step)
+        # the drives' delivered thrust [N] and angle [rad], refilled each cycle (see _update_force_input)
+        self._delivered_thrust_n = np.zeros(n)
+        self._delivered_azimuth_rad = np.zeros(n)
         self._zero3 = np.zeros(3)
         self._fallback_reason = ""
         self._engaged_once = False
@@ -216,7 +220,8 @@ class DpController:
         out.mode_changes.clear()
         dt = self.dt_s if self._last_t_s is None else min(max(t_s - self._last_t_s, 1e-3), 10.0 * self.dt_s)
         self._last_t_s = t_s
-        self._apply_requests(t_s, requests)
+        if requests:  # (most cycles have none)
+            self._apply_requests(t_s, requests)
         self.monitor.feedback(feedback)
 
         # --- sensor hub, against the estimator's prediction
@@ -238,7 +243,8 @@ class DpController:
         t1 = clock() if clock else 0.0
 
         # --- estimator
-        y = np.array(hub.y_n)
+        y = self._y_n  # refilled in place: every estimator and the reference model copy what they keep of it
+        y[:] = hub.y_n
         if not self._estimator_ready:
             if hub.position_available and hub.heading_available:
                 self.estimator.reset(y)
@@ -353,9 +359,9 @@ class DpController:
             rudder = 0.0 if self._rudder_index is None else float(out.azimuth_rad[self._rudder_index])
             self._tau_input_b[:] = (0.0, 0.0, self._rudder_sign * rudder)
             return
-        delivered = self.monitor.delivered()
-        if delivered is not None:
-            self.allocator.geometry.force_b(delivered[0], delivered[1], out=self._tau_input_b)
+        if self.monitor.delivered_into(self._delivered_thrust_n, self._delivered_azimuth_rad):
+            self.allocator.geometry.force_b(self._delivered_thrust_n, self._delivered_azimuth_rad,
+                                            out=self._tau_input_b)
         else:
             self._tau_input_b[:] = out.tau_achieved_b
 
@@ -374,7 +380,11 @@ class DpController:
         out.azimuth_rad[:] = result.azimuth_rad
         if rudder_command is not None and self._rudder_index is not None:
             out.azimuth_rad[self._rudder_index] = self._rudder_sign * rudder_command
-        out.enabled[:] = available & (self.mode is not Mode.STANDBY)
+        # (a copy or a fill: the mask & bool expression built a temporary array every cycle)
+        if self.mode is Mode.STANDBY:
+            out.enabled.fill(False)
+        else:
+            out.enabled[:] = available
         out.tau_achieved_b[:] = result.tau_achieved_b
         out.shortfall_b[:] = result.shortfall_b
 

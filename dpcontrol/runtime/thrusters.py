@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -225,26 +226,39 @@ class ThrusterMonitor:
         self._fb_new = False
         self._feedback = np.full((n, FEEDBACK_COLUMNS), np.nan)
         self._feedback_flat = self._feedback.reshape(-1)  # a view
+        # name → (its _Health, index, positions of its thrust, time and readiness in _fb): see feedback
+        self._slots = {spec.name: (self._health[i], i, FEEDBACK_COLUMNS * i + FB_THRUST, FEEDBACK_COLUMNS * i + FB_T,
+                                   FEEDBACK_COLUMNS * i + FB_READY) for i, spec in enumerate(thrusters)}
         # alarm codes built once (an f-string per thruster and step cost more than the health logic)
         self._codes = [(f"thruster.{spec.name}.feedback_lost", f"thruster.{spec.name}.unavailable")
                        for spec in thrusters]
         # the codes this monitor has raised (only it raises them): clear() is called only for these, not for
         # every thruster and step (a registry look-up each, most of the monitor's cost)
         self._raised: set[str] = set()
+        # (settings, readmit_s, and the four floats _advance takes from them): see update
+        self._limits: tuple[Any, ...] = (None, math.nan)
 
     def feedback(self, items: Sequence[ThrusterFeedback]) -> None:
         """Store the latest feedback of each drive."""
+        # (per drive, its record and list positions looked up once by name: the index arithmetic and the
+        # attribute look-ups of a plain loop cost more than the writes, six to eight drives every cycle)
+        fb = self._fb
+        angles = self._fb_angle
+        slots = self._slots
+        seen = False
         for item in items:
-            index = self._index.get(item.name)
-            if index is None:
+            slot = slots.get(item.name)
+            if slot is None:
                 self.unknown_feedback += 1
                 continue
-            self._health[index].last_feedback = item
-            row = FEEDBACK_COLUMNS * index
-            self._fb[row + FB_THRUST] = item.thrust_n
-            self._fb[row + FB_T] = item.t_s
-            self._fb[row + FB_READY] = 1.0 if item.ready else 0.0
-            self._fb_angle[index] = item.azimuth_rad
+            health, index, thrust, stamp, ready = slot
+            health.last_feedback = item
+            fb[thrust] = item.thrust_n
+            fb[stamp] = item.t_s
+            fb[ready] = 1.0 if item.ready else 0.0
+            angles[index] = item.azimuth_rad
+            seen = True
+        if seen:
             self._fb_new = True
             self.feedback_seen = True
 
@@ -274,10 +288,15 @@ class ThrusterMonitor:
         if self._fb_new:
             self._feedback_flat[:] = self._fb
             self._fb_new = False
-        s = self.settings
+        limits = self._limits
+        if limits[0] is not self.settings or limits[1] != self.readmit_s:
+            # the settings as the kernel's floats, converted again only when settings or readmit_s are replaced
+            s = self.settings
+            limits = self._limits = (s, self.readmit_s, float(s.feedback_timeout_s), float(s.mismatch_fraction),
+                                     float(s.mismatch_persist_s), float(self.readmit_s))
+        _, _, timeout, fraction, persist, readmit = limits
         flagged = _advance(float(t_s), float(dt_s), commanded, self._drive, self._feedback, self._not_ready,
-                           self._failed, float(s.feedback_timeout_s), float(s.mismatch_fraction),
-                           float(s.mismatch_persist_s), float(self.readmit_s), self.available, self._events)
+                           self._failed, timeout, fraction, persist, readmit, self.available, self._events)
         if flagged or self._raised:
             self._raise_and_clear(t_s)
         return self.available
@@ -332,6 +351,27 @@ class ThrusterMonitor:
             return None
         # the lists hold 0 N and the spec's angle for a drive without feedback
         return np.array(self._fb[FB_THRUST::FEEDBACK_COLUMNS]), np.array(self._fb_angle)
+
+    def delivered_into(self, thrust_n: np.ndarray, azimuth_rad: np.ndarray) -> bool:
+        """:meth:`delivered` written into the caller's arrays (the control step's per-cycle path).
+
+        Parameters
+        ----------
+        thrust_n, azimuth_rad : ndarray, shape (n,)
+            Filled with the latest delivered thrust [N] and azimuth / rudder angle [rad] per thruster
+            (0 N and the spec's angle for a drive without feedback); untouched without any feedback.
+
+        Returns
+        -------
+        bool
+            Whether there was feedback (False: nothing written, as :meth:`delivered` returns None).
+        """
+        if not self.feedback_seen:
+            return False
+        # the same values as delivered(), without its two new arrays per cycle
+        thrust_n[:] = self._fb[FB_THRUST::FEEDBACK_COLUMNS]
+        azimuth_rad[:] = self._fb_angle
+        return True
 
     def status(self) -> list[dict[str, object]]:
         """Per-thruster availability for the status message."""

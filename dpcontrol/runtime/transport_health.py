@@ -68,6 +68,9 @@ class TransportHealth:
         self._slot = [-1] * n  # absolute bucket index held by each ring slot (-1: empty)
         self._good = [0] * n
         self._bad = [0] * n
+        # newest bucket index that ever counted a malformed frame: older than the window means no malformed
+        # frame in it, which rate() answers without its pass over the ring (the usual case, every cycle)
+        self._last_bad = -math.inf
         self.ok_total = 0
         self.rejected_total = 0
         self.flagged_total = 0
@@ -95,6 +98,7 @@ class TransportHealth:
             self._bad[slot] = 0
         if bad:
             self._bad[slot] += 1
+            self._last_bad = max(self._last_bad, index)
         else:
             self._good[slot] += 1
 
@@ -102,6 +106,8 @@ class TransportHealth:
         """``(share of malformed frames, number of malformed frames)`` in the window ending at ``t_s``."""
         newest = math.floor(t_s / self.bucket_s)
         oldest = newest - self._n + 1
+        if self._last_bad < oldest:  # no malformed frame in the window: the pass below would give (0.0, 0)
+            return 0.0, 0
         good = bad = 0
         # (called every control cycle: one pass over the ring, no attribute look-up per slot)
         for index, good_n, bad_n in zip(self._slot, self._good, self._bad, strict=True):

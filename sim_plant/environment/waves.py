@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -85,9 +86,9 @@ class SeaState:
         return self.hs_m == 0.0
 
 
-@dataclass(frozen=True, slots=True)
-class WaveSample:
-    """Wave effects at one instant.
+class WaveSample(NamedTuple):
+    """Wave effects at one instant (immutable; a named tuple: the plant evaluates the waves once per substep,
+    and a tuple costs a quarter of a frozen dataclass to build).
 
     Attributes
     ----------
@@ -431,6 +432,24 @@ class WaveEnvironment:
         i = self.index_at(t_s)
         if i < 0 or self.sea_states[i].calm:
             return NO_PEAKS
+        return self._peaks(i, heading_rad, speed_along_mps)
+
+    def peaks_for_velocity(self, t_s: float, heading_rad: float, north_rate_mps: float,
+                           east_rate_mps: float) -> SpectrumPeaks:
+        """:meth:`peaks` for a vessel velocity over ground in NED: the speed along the wave direction is
+        ``north_rate·cos χ + east_rate·sin χ`` with χ = :meth:`propagation_rad` (0 before the first sea state).
+
+        The same result as ``peaks(t_s, heading_rad, speed)`` with that speed, with one look-up of the sea
+        state in force instead of two (the plant's truth asks every control step).
+        """
+        i = self.index_at(t_s)
+        if i < 0 or self.sea_states[i].calm:
+            return NO_PEAKS
+        prop = ssa(self.sea_states[i].direction_rad + math.pi)  # propagation_rad(t_s)
+        return self._peaks(i, heading_rad, north_rate_mps * math.cos(prop) + east_rate_mps * math.sin(prop))
+
+    def _peaks(self, i: int, heading_rad: float, speed_along_mps: float) -> SpectrumPeaks:
+        """:meth:`peaks` of sea state ``i`` (in force, not calm)."""
         state = self.sea_states[i]
         beta = ssa(state.direction_rad + math.pi - heading_rad)
         key = (i, round(math.degrees(beta)), round(speed_along_mps * 10.0))

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from dpcontrol.allocation import ThrustAllocator
+from dpcontrol.allocation.allocator import AllocationResult, _result
 from dpcontrol.allocation.geometry import AZIMUTH, RUDDER
 from dpcontrol.allocation.kernels import EPS_ANGLE, TWO_PI, _sector_window
 from dpcontrol.models.frames import ssa
@@ -265,3 +266,15 @@ def test_monitor_expected_thrust_is_the_first_order_lag_formula() -> None:
             expected += np.clip((command - expected) * response, -rate * dt, rate * dt)
         assert available.all()  # no feedback: nothing to judge
         np.testing.assert_array_equal([h.expected_n for h in monitor._health], expected)
+
+
+def test_allocation_result_fast_constructor_is_the_dataclass() -> None:
+    fields = {"thrust_n": np.arange(3.0), "azimuth_rad": np.ones(3), "tau_achieved_b": np.zeros(3),
+              "shortfall_b": np.full(3, 2.0), "saturated": True, "solver_status": "optimal", "iterations": 4}
+    fast = _result(**fields)
+    plain = AllocationResult(**fields)
+    assert type(fast) is AllocationResult
+    assert list(vars(fast)) == list(vars(plain)) == [f.name for f in dataclasses.fields(AllocationResult)]
+    assert all(getattr(fast, name) is value for name, value in fields.items())
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        fast.saturated = False  # type: ignore[misc]

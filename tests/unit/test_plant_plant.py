@@ -218,3 +218,23 @@ def test_tanker_offloading_runs_with_the_mass_schedule() -> None:
     assert truth.motion_peak_rad_s is not None and truth.motion_peak_rad_s < 0.9 * truth.omega_peak_rad_s
     assert truth.north_m < -10.0  # the 1 m/s current from ahead sets the uncontrolled tanker astern
     assert np.isfinite(truth.tau_env_b).all()
+
+
+@pytest.mark.parametrize("name", ["supply-seed001", "mariner-seed002", "tanker-seed003"])
+def test_record_values_are_the_truth_fields(name: str) -> None:
+    """Plant.record_values (one per lockstep step) gives exactly the fields of Plant.truth it names."""
+    plant = Plant(load_scenario(builtin_scenario_path(name)))
+    names = plant.drives.names
+    for k in range(1, 40):
+        t = k * 0.1
+        plant.command(plant.t_s, {n: ThrusterCommand(1e4 * (i + 1), 0.1 * k, True) for i, n in enumerate(names)})
+        plant.advance(t)
+        plant.sensor_samples(t)
+        values = plant.record_values()  # computed (no truth built yet this step)
+        truth = plant.truth
+        expected = (truth.t_s, truth.north_m, truth.east_m, truth.heading_rad, truth.north_total_m,
+                    truth.east_total_m, truth.heading_total_rad, truth.surge_mps, truth.sway_mps,
+                    truth.yaw_rate_radps, *truth.tau_act_b, truth.omega_peak_rad_s, truth.motion_peak_rad_s,
+                    truth.mass_factor, truth.surge_mass_kg)
+        assert values == expected
+        assert plant.record_values() == expected  # from the cached truth

@@ -218,3 +218,65 @@ def test_limits_hold_for_any_command_sequence(vessel, commands) -> None:
                 assert abs(drives.angle[i]) <= spec.rudder_max_angle_rad + 1e-12
             if spec.kind in ("tunnel", "propeller"):
                 assert drives.angle[i] == spec.angle_rad
+
+
+# -- the array fast paths (command_arrays: one kernel call; feedback_values: no object per drive) -----------
+_ALL = [TUNNEL, SLOW, AZI, RUDDER]
+_value = st.one_of(st.floats(-1e3, 1e3), st.sampled_from([0.0, -0.0, 100.0, -80.0, 300.0, -150.0, 1e6, -1e6]))
+_angle = st.one_of(st.floats(-20.0, 20.0), st.sampled_from([0.0, -0.0, math.pi, -math.pi, math.radians(35.0)]))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.permutations(range(4)), st.lists(st.tuples(_value, _angle, st.booleans()), min_size=4, max_size=4),
+       st.floats(0.0, 100.0))
+def test_command_arrays_sets_what_command_sets(order, values, t_s) -> None:
+    import numpy as np  # noqa: PLC0415 (the rest of this module needs no numpy)
+
+    plain = ThrusterDrives(_ALL)
+    fast = ThrusterDrives(_ALL)
+    plain.command(t_s, {_ALL[i].name: ThrusterCommand(thrust, azimuth, on)
+                        for i, (thrust, azimuth, on) in zip(order, values, strict=True)})
+    thrust, azimuth, enabled = (np.array(column) for column in zip(*values, strict=True))
+    fast.command_arrays(t_s, np.array(order, dtype=np.int64), thrust, azimuth, enabled.astype(bool))
+    # bit for bit (signed zeros included): the kernel's comparisons are those of min(high, max(low, x))
+    assert plain._state.tobytes() == fast._state.tobytes()
+    assert plain._bank.tobytes() == fast._bank.tobytes()
+
+
+def test_command_arrays_rejects_what_command_rejects_and_takes_other_types() -> None:
+    import numpy as np  # noqa: PLC0415
+
+    drives = ThrusterDrives(_ALL)
+    drives.command(1.0, {"tunnel": ThrusterCommand(10.0), "azi": ThrusterCommand(20.0, 0.5)})
+    before = drives._state.copy()
+    order = np.arange(4, dtype=np.int64)
+    for thrust, azimuth in (([1.0, math.nan, 1.0, 1.0], [0.0] * 4), ([1.0] * 4, [0.0, 0.0, math.inf, 0.0])):
+        with pytest.raises(CommandError) as fast:
+            drives.command_arrays(2.0, order, np.array(thrust), np.array(azimuth), np.ones(4, dtype=bool))
+        with pytest.raises(CommandError) as plain:
+            drives.command(2.0, {s.name: ThrusterCommand(a, b, True) for s, a, b in zip(_ALL, thrust, azimuth,
+                                                                                       strict=True)})
+        assert str(fast.value) == str(plain.value)
+        assert np.array_equal(drives._state, before, equal_nan=True)  # nothing applied
+    with pytest.raises(CommandError, match="command time"):
+        drives.command_arrays(math.nan, order, np.ones(4), np.zeros(4), np.ones(4, dtype=bool))
+    with pytest.raises(ValueError):  # lengths differ
+        drives.command_arrays(2.0, order, np.ones(3), np.zeros(4), np.ones(4, dtype=bool))
+    # integers, float32, a list: not the kernel's types, converted by the general path to the same targets
+    drives.command_arrays(3.0, order, np.array([5, 6, 7, 8]), np.zeros(4, dtype=np.float32), [True] * 4)
+    expected = ThrusterDrives(_ALL)
+    expected.command(3.0, {s.name: ThrusterCommand(float(v), 0.0, True) for s, v in zip(_ALL, [5, 6, 7, 8],
+                                                                                        strict=True)})
+    assert drives._target_thrust == expected._target_thrust
+
+
+def test_feedback_values_are_the_feedback() -> None:
+    drives = ThrusterDrives(_ALL)
+    drives.command(0.0, {"tunnel": ThrusterCommand(50.0), "azi": ThrusterCommand(100.0, 2.0),
+                         "main": ThrusterCommand(-100.0, 0.3), "slow": ThrusterCommand(40.0)})
+    drives.set_failure("slow", "wrong_sign")
+    drives.set_failure("tunnel", "not_ready")
+    _run(drives, 0.0, 1.0)
+    thrusts, angles, ready = drives.feedback_values()
+    assert [(f.name, f.thrust_n, f.azimuth_rad, f.ready) for f in drives.feedback()] == \
+        list(zip(drives.names, thrusts, angles, ready, strict=True))

@@ -248,3 +248,15 @@ def test_calm_before_the_first_sea_state_and_in_zero_hs() -> None:
     assert ramp[0] == 0.0 and max(ramp) < 0.05  # fades in from calm
     with pytest.raises(ValueError, match="fade"):
         _env([SeaState(0.0, 1.0, 0.8, 0.0), SeaState(10.0, 1.0, 0.8, 0.0, fade_s=30.0)])
+
+
+def test_peaks_for_velocity_are_the_peaks_at_the_speed_along_the_waves() -> None:
+    """WaveEnvironment.peaks_for_velocity (the plant's truth, once per step) is peaks() at the speed along χ."""
+    env = _env([SeaState(50.0, 0.0, 0.8, 0.0), SeaState(100.0, 2.0, 0.8, math.radians(40.0)),
+                SeaState(200.0, 3.0, 0.6, math.radians(-120.0), fade_s=20.0)])
+    rng = np.random.default_rng(3)
+    for t in (10.0, 60.0, 100.0, 150.0, 205.0, 300.0):
+        for heading, vn, ve in rng.uniform([-4.0, -3.0, -3.0], [4.0, 3.0, 3.0], size=(20, 3)):
+            prop = env.propagation_rad(t)
+            along = 0.0 if prop is None else vn * math.cos(prop) + ve * math.sin(prop)
+            assert env.peaks_for_velocity(t, heading, vn, ve) == env.peaks(t, heading, along)

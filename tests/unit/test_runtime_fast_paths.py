@@ -278,3 +278,29 @@ def test_error_rate_is_the_sum_over_the_ring_slots_in_the_window(frames: list[tu
             good += health._good[slot]
             bad += health._bad[slot]
     assert health.rate(t_s) == ((bad / (good + bad) if good + bad else 0.0), bad)
+
+
+def test_monitor_delivered_into_fills_what_delivered_returns() -> None:
+    monitor, _ = _monitor()
+    thrust = np.full(2, 7.0)
+    angle = np.full(2, 7.0)
+    assert monitor.delivered() is None
+    assert not monitor.delivered_into(thrust, angle)  # no feedback yet: nothing written
+    assert thrust.tolist() == [7.0, 7.0] and angle.tolist() == [7.0, 7.0]
+    monitor.feedback([ThrusterFeedback("stern", -2.5e4, 1.5, True, 0.1)])  # the bow has not reported
+    assert monitor.delivered_into(thrust, angle)
+    delivered = monitor.delivered()
+    assert delivered is not None
+    assert thrust.tolist() == delivered[0].tolist() == [0.0, -2.5e4]
+    assert angle.tolist() == delivered[1].tolist() == [math.pi / 2, 1.5]
+
+
+def test_monitor_limits_follow_replaced_readmit_time() -> None:
+    monitor, _ = _monitor()
+    command = np.zeros(2)
+    monitor.update(0.0, 0.1, command)
+    assert monitor._limits[2:] == (1.0, float(monitor.settings.mismatch_fraction),
+                                   float(monitor.settings.mismatch_persist_s), 1.0)
+    monitor.readmit_s = 3.0
+    monitor.update(0.1, 0.1, command)
+    assert monitor._limits[-1] == 3.0
