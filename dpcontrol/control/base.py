@@ -19,7 +19,6 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from dpcontrol.guidance.reference_model import Reference
-from dpcontrol.models.frames import ssa
 
 DofMask = tuple[bool, bool, bool]
 ALL_DOFS: DofMask = (True, True, True)
@@ -118,26 +117,26 @@ def check_dt(dt_s: float) -> float:
     return dt
 
 
-def vessel_parallel_errors(eta_hat_n: np.ndarray, nu_hat_b: np.ndarray, eta_d_n: np.ndarray,
-                           eta_dot_d_n: np.ndarray, eta_ddot_d_n: np.ndarray
-                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Errors and reference rotated into body axes with the estimated heading.
+def checked_state_inputs(eta_hat_n: Any, nu_hat_b: Any, dof_enabled: Sequence[bool], *, bias_hat_b: Any,
+                         tau_wind_ff_b: Any, zero3: np.ndarray
+                         ) -> tuple[np.ndarray, np.ndarray, int, np.ndarray, np.ndarray]:
+    """The state arguments of a controller step checked in their order and converted for its kernel.
+
+    The slow path of the PID and MRAC steps, taken when their kernel refused the arguments as given: the
+    first invalid one raises ValueError naming it.
 
     Returns
     -------
-    e_b, e_dot_b, nu_d_b, nu_dot_d_b : ndarray, shape (3,)
-        ``e_b = Rᵀ(ψ̂)(η̂ − η_d)`` (heading by ssa), ``ė_b = ν̂ − ν_d``, ``ν_d = Rᵀ(ψ̂)η̇_d`` and
-        ``ν̇_d ≈ Rᵀ(ψ̂)η̈_d`` (the ``S(r)ν_d`` term is dropped: low-speed DP, seed 002 eq. (14)).
+    eta, nu : ndarray, shape (3,)
+        η̂ [m, m, rad] (NED) and ν̂ [m/s, m/s, rad/s] (body) as new float64 arrays.
+    mask : int
+        ``dof_enabled`` as bits: 1 surge, 2 sway, 4 yaw.
+    bias, wind : ndarray, shape (3,)
+        b̂ and the wind feed-forward [N, N, N·m] (body), ``zero3`` when not given.
     """
-    psi = float(eta_hat_n[2])
-    c = math.cos(psi)
-    s = math.sin(psi)
-    dn = float(eta_hat_n[0] - eta_d_n[0])
-    de = float(eta_hat_n[1] - eta_d_n[1])
-    e_b = np.array([c * dn + s * de, -s * dn + c * de, ssa(psi - float(eta_d_n[2]))])
-    nu_d_b = np.array([c * eta_dot_d_n[0] + s * eta_dot_d_n[1], -s * eta_dot_d_n[0] + c * eta_dot_d_n[1],
-                       eta_dot_d_n[2]])
-    nu_dot_d_b = np.array([c * eta_ddot_d_n[0] + s * eta_ddot_d_n[1], -s * eta_ddot_d_n[0] + c * eta_ddot_d_n[1],
-                           eta_ddot_d_n[2]])
-    e_dot_b = np.asarray(nu_hat_b, dtype=float) - nu_d_b
-    return e_b, e_dot_b, nu_d_b, nu_dot_d_b
+    eta = np.array(floats3("eta_hat_n", eta_hat_n))
+    nu = np.array(floats3("nu_hat_b", nu_hat_b))
+    flags = dof_mask(dof_enabled)
+    bias = zero3 if bias_hat_b is None else np.array(floats3("bias_hat_b", bias_hat_b))
+    wind = zero3 if tau_wind_ff_b is None else np.array(floats3("tau_wind_ff_b", tau_wind_ff_b))
+    return eta, nu, flags[0] + 2 * flags[1] + 4 * flags[2], bias, wind

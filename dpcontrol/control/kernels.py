@@ -108,6 +108,21 @@ def _valid3(v: np.ndarray) -> i8:
     return 1 if math.isfinite(v[0]) and math.isfinite(v[1]) and math.isfinite(v[2]) else 0
 
 
+@kernel(i8(f8_1d, f8_1d, f8_1d, f8_1d))
+def _state_inputs_error(eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind: np.ndarray) -> i8:
+    """0 when the estimate, bias and wind vectors each hold 3 finite numbers, else ``ERROR_INPUT − k`` for
+    the first (k-th, from 0) that does not: the check both controller steps start with."""
+    if _valid3(eta) == 0:
+        return ERROR_INPUT
+    if _valid3(nu) == 0:
+        return ERROR_INPUT - 1
+    if _valid3(bias) == 0:
+        return ERROR_INPUT - 2
+    if _valid3(wind) == 0:
+        return ERROR_INPUT - 3
+    return 0
+
+
 @kernel(f8(f8, f8, f8))
 def _clamp(x: float, lo: float, hi: float) -> float:
     """Python's ``min(max(x, lo), hi)``."""
@@ -140,14 +155,9 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
         â₂ changed (>= 0), or ``ERROR_INPUT − k`` when the k-th vector is not 3 finite numbers (nothing
         changed then).
     """
-    if _valid3(eta) == 0:
-        return ERROR_INPUT
-    if _valid3(nu) == 0:
-        return ERROR_INPUT - 1
-    if _valid3(bias) == 0:
-        return ERROR_INPUT - 2
-    if _valid3(wind) == 0:
-        return ERROR_INPUT - 3
+    error = _state_inputs_error(eta, nu, bias, wind)
+    if error != 0:
+        return error
     if _valid3(r) == 0:
         return ERROR_INPUT - 4
     y_m = state[S_Y_M]
@@ -329,14 +339,9 @@ def pid_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind:
     The matrix products are sums in index order; numpy's ``@`` called BLAS, whose kernels may fuse
     multiply and add, so τ can differ from that code in the last bits.
     """
-    if _valid3(eta) == 0:
-        return ERROR_INPUT
-    if _valid3(nu) == 0:
-        return ERROR_INPUT - 1
-    if _valid3(bias) == 0:
-        return ERROR_INPUT - 2
-    if _valid3(wind) == 0:
-        return ERROR_INPUT - 3
+    error = _state_inputs_error(eta, nu, bias, wind)
+    if error != 0:
+        return error
     if eta_d.size < 3 or eta_dot_d.size < 3 or eta_ddot_d.size < 3:
         return ERROR_INPUT - 4
     # e_b = Rᵀ(ψ̂)(η̂ − η_d), ν_d = Rᵀ(ψ̂)η̇_d, ν̇_d ≈ Rᵀ(ψ̂)η̈_d, ė_b = ν̂ − ν_d (seed 002 eq. (14); low-speed DP:

@@ -106,7 +106,14 @@ from typing import Any
 import numpy as np
 from scipy.linalg import expm, solve_continuous_lyapunov
 
-from dpcontrol.control.base import ALL_DOFS, HEADING_ONLY, ControlOutput, check_dt, dof_mask, floats3
+from dpcontrol.control.base import (
+    ALL_DOFS,
+    HEADING_ONLY,
+    ControlOutput,
+    check_dt,
+    checked_state_inputs,
+    floats3,
+)
 from dpcontrol.control.kernels import (
     C_A1_HI,
     C_A1_LO,
@@ -605,14 +612,10 @@ class MracController:
             except TypeError:
                 result = ERROR_INPUT
         if result < 0:  # the arguments checked in order and converted: the first invalid one raises ValueError
-            eta = np.array(floats3("eta_hat_n", eta_hat_n))
-            nu = np.array(floats3("nu_hat_b", nu_hat_b))
-            flags = dof_mask(dof_enabled)
-            bias = self._zero3 if bias_hat_b is None else np.array(floats3("bias_hat_b", bias_hat_b))
-            wind = self._zero3 if tau_wind_ff_b is None else np.array(floats3("tau_wind_ff_b", tau_wind_ff_b))
+            eta, nu, mask, bias, wind = checked_state_inputs(
+                eta_hat_n, nu_hat_b, dof_enabled, bias_hat_b=bias_hat_b, tau_wind_ff_b=tau_wind_ff_b, zero3=self._zero3)
             r = np.array(floats3("reference.eta_d_n", reference.eta_d_n))
-            result = mrac_step(dt, eta, nu, bias, wind, r, flags[0] + 2 * flags[1] + 4 * flags[2], self._const,
-                               self._state, out)
+            result = mrac_step(dt, eta, nu, bias, wind, r, mask, self._const, self._state, out)
         self._excited = result
         values = out.tolist()
         m0, m1, m2, c0, c1, c2, north, east, heading = values[OUT_PARAMETERS:]

@@ -31,7 +31,14 @@ from typing import Any, Literal
 
 import numpy as np
 
-from dpcontrol.control.base import ALL_DOFS, HEADING_ONLY, ControlOutput, check_dt, dof_mask, vector3
+from dpcontrol.control.base import (
+    ALL_DOFS,
+    HEADING_ONLY,
+    ControlOutput,
+    check_dt,
+    checked_state_inputs,
+    vector3,
+)
 from dpcontrol.control.kernels import (
     ERROR_INPUT,
     G_DAMPING,
@@ -339,17 +346,13 @@ class PidController:
             except TypeError:
                 result = ERROR_INPUT
         if result < 0:  # the arguments checked in order and converted: the first invalid one raises
-            eta = np.array(vector3("eta_hat_n", eta_hat_n))
-            nu = np.array(vector3("nu_hat_b", nu_hat_b))
-            flags = dof_mask(dof_enabled)
-            bias = self._zero3 if bias_hat_b is None else np.array(vector3("bias_hat_b", bias_hat_b))
-            wind = self._zero3 if tau_wind_ff_b is None else np.array(vector3("tau_wind_ff_b", tau_wind_ff_b))
+            eta, nu, mask, bias, wind = checked_state_inputs(
+                eta_hat_n, nu_hat_b, dof_enabled, bias_hat_b=bias_hat_b, tau_wind_ff_b=tau_wind_ff_b, zero3=self._zero3)
             vectors = [np.array(v, dtype=float).reshape(-1) for v in
                        (reference.eta_d_n, reference.eta_dot_d_n, reference.eta_ddot_d_n)]
             if any(v.size < 3 for v in vectors):
                 raise IndexError("reference vectors must have 3 entries (north, east, heading)")
-            pid_step(dt, eta, nu, bias, wind, *vectors, flags[0] + 2 * flags[1] + 4 * flags[2], self._structure,
-                     self._gains, self._state, out)
+            pid_step(dt, eta, nu, bias, wind, *vectors, mask, self._structure, self._gains, self._state, out)
         return ControlOutput(out[0:3], out[3:6], out[6:9], None)
 
     def notify_achieved(self, tau_achieved_b: np.ndarray) -> None:

@@ -22,6 +22,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import resource
 import shutil
 import signal
 import socket
@@ -45,6 +46,9 @@ DEMO_SENSORS = [
     {"name": "gnss3", "kind": "gnss", "protocol": "mavlink", "rate_hz": 5},
 ]
 READY_TIMEOUT_S = 60.0
+# SCHED_FIFO priority of the daemon's loop thread in the demo when the user may set it (the middle of 1–99:
+# above every normal process, below the kernel's own real-time threads)
+DEMO_REALTIME_PRIORITY = 50
 # The emulator runs this much longer than the scenario: the daemon is stopped first (SIGTERM), and the
 # plant must still be there to receive its last command — zero thrust — before it is stopped in turn.
 STOP_MARGIN_S = 30.0
@@ -88,10 +92,27 @@ class _NotifyListener:
         self.sock.close()
 
 
-def prepare(scenario_path: Path, run_dir: Path) -> tuple[Path, Path, dict[str, Any]]:
+def realtime_priority_allowed(wanted: int = DEMO_REALTIME_PRIORITY) -> int | None:
+    """The SCHED_FIFO priority this user may give the daemon's loop thread (≤ ``wanted``), or None.
+
+    Root (CAP_SYS_NICE) may use any; another user up to its ``RLIMIT_RTPRIO`` (``ulimit -r``), which is
+    0 on most desktops — the demo then runs the loop on the normal scheduler, without an alarm.
+    """
+    if not hasattr(os, "sched_setscheduler"):
+        return None
+    if os.geteuid() == 0:
+        return wanted
+    soft, _ = resource.getrlimit(resource.RLIMIT_RTPRIO)
+    limit = wanted if soft == resource.RLIM_INFINITY else min(wanted, soft)
+    return limit if limit >= 1 else None
+
+
+def prepare(scenario_path: Path, run_dir: Path, *, realtime: bool = False) -> tuple[Path, Path, dict[str, Any]]:
     """Write the demo scenario and the controller configuration into ``run_dir``.
 
-    Returns the two paths and the wiring (vessel id, zenoh endpoint, duration).
+    ``realtime``: give the daemon's control-loop thread SCHED_FIFO (``loop.realtime_priority``) when this
+    user may (:func:`realtime_priority_allowed`); it shortens the tail of the cycle latency on a shared
+    machine. Returns the two paths and the wiring (vessel id, zenoh endpoint, duration).
     """
     scenario = yaml.safe_load(scenario_path.read_text(encoding="utf-8"))
     if not isinstance(scenario, dict):
@@ -135,6 +156,9 @@ def prepare(scenario_path: Path, run_dir: Path) -> tuple[Path, Path, dict[str, A
         "recorder": {"path": str(run_dir / "records"), "flush_s": 0.5},
         "state": {"path": str(run_dir / "state.json"), "max_age_s": 30},
     }
+    priority = realtime_priority_allowed() if realtime else None
+    if priority is not None:
+        config["loop"]["realtime_priority"] = priority
     for key in ("estimator", "control", "guidance", "allocation", "hub", "fallback", "thruster_monitor"):
         if key in controller:
             config[key] = controller[key]
@@ -182,7 +206,7 @@ def run_demo(scenario_path: Path, run_dir: Path | None = None, *, duration_s: fl
     stamp = time.strftime("%Y%m%d-%H%M%S", time.gmtime())
     run_dir = run_dir or Path("runs") / f"demo-{stamp}"
     run_dir.mkdir(parents=True, exist_ok=True)
-    scenario_file, config_file, wiring = prepare(scenario_path, run_dir)
+    scenario_file, config_file, wiring = prepare(scenario_path, run_dir, realtime=True)
     duration = duration_s if duration_s is not None else wiring["duration_s"]
     short = Path(wiring["short_dir"])
     say = (lambda *_: None) if quiet else (lambda text: print(f"sim-plant demo: {text}", flush=True))
