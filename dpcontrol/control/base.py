@@ -117,6 +117,18 @@ def check_dt(dt_s: float) -> float:
     return dt
 
 
+def kernel_arguments(dof_enabled: Sequence[bool], bias_hat_b: Any, tau_wind_ff_b: Any, zero3: np.ndarray
+                     ) -> tuple[int, Any, Any]:
+    """The PID/MRAC kernel's DOF mask and bias/wind vectors for the arguments as given (the fast path).
+
+    The mask is bits (1 surge, 2 sway, 4 yaw) for the two masks the runtime passes (:data:`ALL_DOFS`,
+    :data:`HEADING_ONLY`, valid by construction), −1 for anything else (then :func:`checked_state_inputs`
+    validates it). An absent bias or wind feed-forward is ``zero3``.
+    """
+    mask = 7 if dof_enabled is ALL_DOFS else (4 if dof_enabled is HEADING_ONLY else -1)
+    return (mask, zero3 if bias_hat_b is None else bias_hat_b, zero3 if tau_wind_ff_b is None else tau_wind_ff_b)
+
+
 def checked_state_inputs(eta_hat_n: Any, nu_hat_b: Any, dof_enabled: Sequence[bool], *, bias_hat_b: Any,
                          tau_wind_ff_b: Any, zero3: np.ndarray
                          ) -> tuple[np.ndarray, np.ndarray, int, np.ndarray, np.ndarray]:

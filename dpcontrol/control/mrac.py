@@ -108,11 +108,11 @@ from scipy.linalg import expm, solve_continuous_lyapunov
 
 from dpcontrol.control.base import (
     ALL_DOFS,
-    HEADING_ONLY,
     ControlOutput,
     check_dt,
     checked_state_inputs,
     floats3,
+    kernel_arguments,
 )
 from dpcontrol.control.kernels import (
     C_A1_HI,
@@ -601,11 +601,9 @@ class MracController:
         out = np.empty(OUT_SIZE)
         # the runtime's arguments go straight to the kernel, which checks that the vectors are finite: the two
         # DOF masks it passes (valid by construction) and float64 vectors (anything else: TypeError)
-        mask = 7 if dof_enabled is ALL_DOFS else (4 if dof_enabled is HEADING_ONLY else -1)
+        mask, bias, wind = kernel_arguments(dof_enabled, bias_hat_b, tau_wind_ff_b, self._zero3)
         result = ERROR_INPUT
         if mask >= 0:
-            bias = self._zero3 if bias_hat_b is None else bias_hat_b
-            wind = self._zero3 if tau_wind_ff_b is None else tau_wind_ff_b
             try:
                 result = mrac_step(dt, eta_hat_n, nu_hat_b, bias, wind, reference.eta_d_n, mask, self._const,
                                    self._state, out)

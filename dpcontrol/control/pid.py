@@ -33,10 +33,10 @@ import numpy as np
 
 from dpcontrol.control.base import (
     ALL_DOFS,
-    HEADING_ONLY,
     ControlOutput,
     check_dt,
     checked_state_inputs,
+    kernel_arguments,
     vector3,
 )
 from dpcontrol.control.kernels import (
@@ -335,11 +335,9 @@ class PidController:
         out = np.empty(PID_OUT_SIZE)
         # the runtime's arguments go straight to the kernel, which checks that the vectors are finite: the two
         # DOF masks it passes (valid by construction) and float64 vectors (anything else: TypeError)
-        mask = 7 if dof_enabled is ALL_DOFS else (4 if dof_enabled is HEADING_ONLY else -1)
+        mask, bias, wind = kernel_arguments(dof_enabled, bias_hat_b, tau_wind_ff_b, self._zero3)
         result = ERROR_INPUT
         if mask >= 0:
-            bias = self._zero3 if bias_hat_b is None else bias_hat_b
-            wind = self._zero3 if tau_wind_ff_b is None else tau_wind_ff_b
             try:
                 result = pid_step(dt, eta_hat_n, nu_hat_b, bias, wind, reference.eta_d_n, reference.eta_dot_d_n,
                                   reference.eta_ddot_d_n, mask, self._structure, self._gains, self._state, out)

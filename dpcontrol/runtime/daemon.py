@@ -235,7 +235,7 @@ class LoopStats:
 
     Per cycle: its duration, the time from its start to the thruster command being published, the
     lateness of its start against the deadline (jitter), and where the time to the command went —
-    ``inputs`` (draining the readers, links, setpoints, feedback, the cycle record), ``step`` (the
+    ``inputs`` (draining the readers, links, setpoints, feedback), ``step`` (the
     controller step) and ``command`` (building and publishing the command) — over the last
     ``TIMING_WINDOW`` cycles.
     """
@@ -500,21 +500,25 @@ class Daemon:
                     feedback.append(ThrusterFeedback(item.name, item.thrust_n, item.azimuth_rad, item.ready,
                                                      latest.rx_t_s))
         clock = self.clock
-        if self.recorder is not None:  # exactly what this step consumed (dpcontrol replay reproduces it)
-            self.recorder.record("cycle", t_s, {
-                "t_s": t_s, "cycle": self._seq, "inputs": sources,
-                "links": [[status.source, status.connected, status.detail] for status in links],
-                "feedback": [[f.name, f.thrust_n, f.azimuth_rad, f.ready, f.t_s] for f in feedback],
-                "requests": [request_as_dict(r) for r in requests]})
-        stepped_from = clock()
-        out = self.controller.step(t_s, measurements, feedback, requests)
-        stepped = clock()
         seq = self._seq
-        self._seq += 1
-        self._publishers["command"].put(schemas.command_payload(
-            t_s=t_s, seq=seq, mode=out.mode.value, names=self._names, thrust_n=out.thrust_n,
-            azimuth_rad=out.azimuth_rad, enabled=out.enabled))
-        published = clock()
+        stepped_from = clock()
+        try:
+            out = self.controller.step(t_s, measurements, feedback, requests)
+            stepped = clock()
+            self._seq += 1
+            self._publishers["command"].put(schemas.command_payload(
+                t_s=t_s, seq=seq, mode=out.mode.value, names=self._names, thrust_n=out.thrust_n,
+                azimuth_rad=out.azimuth_rad, enabled=out.enabled))
+            published = clock()
+        finally:
+            # Exactly what this step consumed (dpcontrol replay reproduces it), recorded once the command is
+            # out — building the record is not on the way to the thrusters — and also when the step raised.
+            if self.recorder is not None:
+                self.recorder.record("cycle", t_s, {
+                    "t_s": t_s, "cycle": seq, "inputs": sources,
+                    "links": [[status.source, status.connected, status.detail] for status in links],
+                    "feedback": [[f.name, f.thrust_n, f.azimuth_rad, f.ready, f.t_s] for f in feedback],
+                    "requests": [request_as_dict(r) for r in requests]})
         self.stats.add_phases((stepped_from - t_s) * 1e6, (stepped - stepped_from) * 1e6, (published - stepped) * 1e6)
         self._publish_rest(t_s, seq, out)
         self.pump.health.update_alarms(t_s, self.alarms)
