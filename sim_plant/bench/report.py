@@ -66,6 +66,13 @@ def _round(value: float | None, digits: int = 6) -> float | None:
     return None if value is None or not math.isfinite(value) else round(value, digits)
 
 
+def _finite_std(values: np.ndarray) -> float | None:
+    """Standard deviation of the finite ``values``; None when there are none (a run shorter than the settling
+    time: nanstd would warn and return NaN)."""
+    finite = values[np.isfinite(values)]
+    return float(np.std(finite)) if finite.size else None
+
+
 def wave_frequency_std(signal: np.ndarray, dt_s: float, low_rad_s: float) -> float | None:
     """Standard deviation of the part of ``signal`` above ``low_rad_s``: √(∫_{ω ≥ low} PSD dω).
 
@@ -194,7 +201,7 @@ def summarise(result: RunResult) -> dict[str, Any]:
         metrics["tau_wave_frequency_std"] = [_round(wave_frequency_std(col(n)[sl], dt, low))
                                              for n in ("tau_x_n", "tau_y_n", "tau_n_nm")]
         metrics["tau_wave_frequency_from_s"] = _round(float(t[min(start, t.size - 1)]), 3)
-        metrics["tau_std"] = [_round(float(np.nanstd(col(n)[sl]))) for n in ("tau_x_n", "tau_y_n", "tau_n_nm")]
+        metrics["tau_std"] = [_round(_finite_std(col(n)[sl])) for n in ("tau_x_n", "tau_y_n", "tau_n_nm")]
     mass = col("mrac_mass_surge_kg")
     if np.any(np.isfinite(mass)):
         true_mass = col("true_surge_mass_kg")
