@@ -108,6 +108,19 @@ def _valid3(v: np.ndarray) -> i8:
     return 1 if math.isfinite(v[0]) and math.isfinite(v[1]) and math.isfinite(v[2]) else 0
 
 
+@kernel(f8(f8, f8, f8, f8, f8))
+def _adapted(a: float, nominal: float, rate: float, k: float, dt: float) -> float:
+    """One MRAC parameter after ``dt`` of its law (seed 003 eq. (21)) with the rate ``f`` held constant.
+
+    With leakage ``k = σγ > 0`` (σ-modification â̇ = f − σγ(â − â_nom)) the exact solution over ``dt``;
+    with ``k = 0`` the plain integral ``â + dt·f``.
+    """
+    if k > 0.0:
+        target = nominal + rate / k
+        return target + (a - target) * math.exp(-k * dt)
+    return a + dt * rate
+
+
 @kernel(i8(f8_1d, f8_1d, f8_1d, f8_1d))
 def _state_inputs_error(eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind: np.ndarray) -> i8:
     """0 when the estimate, bias and wind vectors each hold 3 finite numbers, else ``ERROR_INPUT − k`` for
@@ -239,23 +252,9 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
             gamma_c = const[C_GAMMA_C, i]
             rate2 = -gamma_m * v2 * signal if gate else 0.0
             rate1 = -gamma_c * v1 * signal if abs(yd_b[i]) > const[C_VELOCITY, i] else 0.0
-            if sigma > 0.0:
-                # σ-modification â̇ = f − σΓ(â − â_nom), solved exactly over dt with f held constant
-                k = sigma * gamma_m
-                if k > 0.0:
-                    target = const[C_A2_NOMINAL, i] + rate2 / k
-                    a2[i] = target + (a2[i] - target) * math.exp(-k * dt)
-                else:
-                    a2[i] += dt * rate2
-                k = sigma * gamma_c
-                if k > 0.0:
-                    target = const[C_A1_NOMINAL, i] + rate1 / k
-                    a1[i] = target + (a1[i] - target) * math.exp(-k * dt)
-                else:
-                    a1[i] += dt * rate1
-            else:  # no leakage (the default): the plain integral of (21) over the sample
-                a2[i] += dt * rate2
-                a1[i] += dt * rate1
+            leak = sigma if sigma > 0.0 else 0.0  # no leakage (the default): the plain integral of (21)
+            a2[i] = _adapted(a2[i], const[C_A2_NOMINAL, i], rate2, leak * gamma_m, dt)
+            a1[i] = _adapted(a1[i], const[C_A1_NOMINAL, i], rate1, leak * gamma_c, dt)
             # projection onto the physical bounds
             a2[i] = _clamp(a2[i], const[C_A2_LO, i], const[C_A2_HI, i])
             a1[i] = _clamp(a1[i], const[C_A1_LO, i], const[C_A1_HI, i])

@@ -186,6 +186,13 @@ class _SensorTrack:
         self.variance_alpha = min(1.0, period / limits.variance_time_constant_s)
 
 
+def _healthy(tracks: list[_SensorTrack], t_s: float) -> list[_SensorTrack]:
+    """The references of ``tracks`` fit to fuse at ``t_s``: OK or ISOLATED, with an accepted sample that is
+    not stale."""
+    return [t for t in tracks if t.state in _HEALTHY_STATES and t.last_accepted_t_s is not None and
+            t_s - t.last_accepted_t_s <= t.stale_s]
+
+
 @dataclass
 class HubOutput:
     """What the hub gives the estimator for one control step.
@@ -349,10 +356,8 @@ class SensorHub:
         self._refresh_states(t_s)
         # The healthy references of each kind, once for the median test and the fusion (the median test moves
         # references only between OK and ISOLATED, both healthy: the lists are the same after it).
-        healthy_position = [t for t in self._position if t.state in _HEALTHY_STATES and
-                            t.last_accepted_t_s is not None and t_s - t.last_accepted_t_s <= t.stale_s]
-        healthy_heading = [t for t in self._heading if t.state in _HEALTHY_STATES and
-                           t.last_accepted_t_s is not None and t_s - t.last_accepted_t_s <= t.stale_s]
+        healthy_position = _healthy(self._position, t_s)
+        healthy_heading = _healthy(self._heading, t_s)
         if len(healthy_position) > 1 or self._disagree["position"]:
             self._median_one(healthy_position, t_s, heading=False)
         if len(healthy_heading) > 1 or self._disagree["heading"]:
@@ -364,23 +369,7 @@ class SensorHub:
         head_new = self._fuse_heading(t_s, None if out.heading_reset else predicted_y_n, healthy_heading)
         out.measured = (pos_new, pos_new, head_new)
         out.yaw_rate_radps = self._yaw_rate
-        # availability: at least one reference of the kind in use; how long none has been
-        position = out.position_available = bool(self._position_used)
-        heading = out.heading_available = bool(self._heading_used)
-        if position:
-            self._position_lost_since = None
-            out.position_lost_s = 0.0
-        else:
-            if self._position_lost_since is None:
-                self._position_lost_since = t_s
-            out.position_lost_s = t_s - self._position_lost_since
-        if heading:
-            self._heading_lost_since = None
-            out.heading_lost_s = 0.0
-        else:
-            if self._heading_lost_since is None:
-                self._heading_lost_since = t_s
-            out.heading_lost_s = t_s - self._heading_lost_since
+        self._availability(t_s)
         return out
 
     def _nominal_sigma(self, track: _SensorTrack) -> float:
@@ -774,6 +763,22 @@ class SensorHub:
         self._last_heading = fused
         self._out.y_n[2] = fused
         return fresh
+
+    def _availability(self, t_s: float) -> None:
+        """At least one reference of each kind in use, and for how long none has been [s]."""
+        out = self._out
+        out.position_available = bool(self._position_used)
+        out.heading_available = bool(self._heading_used)
+        if out.position_available:
+            self._position_lost_since = None
+        elif self._position_lost_since is None:
+            self._position_lost_since = t_s
+        if out.heading_available:
+            self._heading_lost_since = None
+        elif self._heading_lost_since is None:
+            self._heading_lost_since = t_s
+        out.position_lost_s = 0.0 if self._position_lost_since is None else t_s - self._position_lost_since
+        out.heading_lost_s = 0.0 if self._heading_lost_since is None else t_s - self._heading_lost_since
 
     # ------------------------------------------------------------------ reporting
     def sensor_status(self, t_s: float) -> list[dict[str, object]]:

@@ -345,15 +345,9 @@ class ThrusterMonitor:
         drive[index, D_EXPECTED] = feedback.thrust_n if feedback else 0.0
         return True
 
-    def delivered(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """Latest delivered thrust [N] and azimuth [rad] per thruster, or None without feedback."""
-        if not self.feedback_seen:
-            return None
-        # the lists hold 0 N and the spec's angle for a drive without feedback
-        return np.array(self._fb[FB_THRUST::FEEDBACK_COLUMNS]), np.array(self._fb_angle)
-
     def delivered_into(self, thrust_n: np.ndarray, azimuth_rad: np.ndarray) -> bool:
-        """:meth:`delivered` written into the caller's arrays (the control step's per-cycle path).
+        """The latest delivered thrust and angle per thruster, written into the caller's arrays (no new
+        arrays per control cycle).
 
         Parameters
         ----------
@@ -364,11 +358,10 @@ class ThrusterMonitor:
         Returns
         -------
         bool
-            Whether there was feedback (False: nothing written, as :meth:`delivered` returns None).
+            Whether there was feedback (False: nothing written).
         """
         if not self.feedback_seen:
             return False
-        # the same values as delivered(), without its two new arrays per cycle
         thrust_n[:] = self._fb[FB_THRUST::FEEDBACK_COLUMNS]
         azimuth_rad[:] = self._fb_angle
         return True

@@ -280,19 +280,16 @@ def test_error_rate_is_the_sum_over_the_ring_slots_in_the_window(frames: list[tu
     assert health.rate(t_s) == ((bad / (good + bad) if good + bad else 0.0), bad)
 
 
-def test_monitor_delivered_into_fills_what_delivered_returns() -> None:
+def test_monitor_delivered_into_fills_the_latest_feedback() -> None:
     monitor, _ = _monitor()
     thrust = np.full(2, 7.0)
     angle = np.full(2, 7.0)
-    assert monitor.delivered() is None
     assert not monitor.delivered_into(thrust, angle)  # no feedback yet: nothing written
     assert thrust.tolist() == [7.0, 7.0] and angle.tolist() == [7.0, 7.0]
     monitor.feedback([ThrusterFeedback("stern", -2.5e4, 1.5, True, 0.1)])  # the bow has not reported
     assert monitor.delivered_into(thrust, angle)
-    delivered = monitor.delivered()
-    assert delivered is not None
-    assert thrust.tolist() == delivered[0].tolist() == [0.0, -2.5e4]
-    assert angle.tolist() == delivered[1].tolist() == [math.pi / 2, 1.5]
+    assert thrust.tolist() == [0.0, -2.5e4]  # 0 N for a drive without feedback
+    assert angle.tolist() == [math.pi / 2, 1.5]  # and its spec's angle
 
 
 def test_monitor_limits_follow_replaced_readmit_time() -> None:
