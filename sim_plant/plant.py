@@ -138,6 +138,14 @@ class PlantTruth:
         }
 
 
+def _total_pose(north_m: float, east_m: float, psi_rad: float, wave: WaveSample) -> tuple[float, float, float]:
+    """LF pose plus the WF motion (body axes, seed 001) rotated to NED: what a sensor sees [m, m, rad]."""
+    c = math.cos(psi_rad)
+    s = math.sin(psi_rad)
+    return (north_m + c * wave.surge_m - s * wave.sway_m, east_m + s * wave.surge_m + c * wave.sway_m,
+            ssa(psi_rad + wave.yaw_rad))
+
+
 class Plant:
     """The plant of one scenario (see the module docstring).
 
@@ -346,11 +354,7 @@ class Plant:
             return
         north, east, psi, _, _, r = self._x.tolist()
         wave = self._waves_at(t)
-        c = math.cos(psi)
-        s = math.sin(psi)
-        north_total = north + c * wave.surge_m - s * wave.sway_m
-        east_total = east + s * wave.surge_m + c * wave.sway_m
-        heading_total = ssa(psi + wave.yaw_rad)
+        north_total, east_total, heading_total = _total_pose(north, east, psi, wave)
         rate_total = r + wave.yaw_rate_radps
         for sensor in due:
             while sensor.next_time_s <= t + _TOL_S:
@@ -370,20 +374,17 @@ class Plant:
         x = self._x.tolist()
         wave = self._waves_at(t)
         psi = x[2]
-        c = math.cos(psi)
-        s = math.sin(psi)
         tau = self._tau_act()
         wind_env = self.wind.force_b(t, psi, x[3], x[4])
         drift = wave.drift_b
         cn, ce = self.current.velocity_ned(t)
         peaks = self._peaks(t, psi, x[3], x[4])
         model = self.model
+        north_total, east_total, heading_total = _total_pose(x[0], x[1], psi, wave)
         truth = PlantTruth(
             t_s=t,
             north_m=x[0], east_m=x[1], heading_rad=ssa(psi),
-            north_total_m=x[0] + c * wave.surge_m - s * wave.sway_m,
-            east_total_m=x[1] + s * wave.surge_m + c * wave.sway_m,
-            heading_total_rad=ssa(psi + wave.yaw_rad),
+            north_total_m=north_total, east_total_m=east_total, heading_total_rad=heading_total,
             surge_mps=x[3], sway_mps=x[4], yaw_rate_radps=x[5],
             wf_surge_m=wave.surge_m, wf_sway_m=wave.sway_m, wf_yaw_rad=wave.yaw_rad,
             yaw_rate_total_radps=x[5] + wave.yaw_rate_radps,
@@ -425,8 +426,6 @@ class Plant:
         t = self._t
         north, east, psi, u, v, r = self._x.tolist()
         wave = self._waves_at(t)
-        c = math.cos(psi)
-        s = math.sin(psi)
         tx, ty, tn = self._tau_act()
         peaks = self._peaks(t, psi, u, v)
         model = self.model
@@ -434,8 +433,7 @@ class Plant:
         if factor != self._surge_mass_factor:
             self._surge_mass = model.surge_mass_kg
             self._surge_mass_factor = factor
-        return (t, north, east, ssa(psi), north + c * wave.surge_m - s * wave.sway_m,
-                east + s * wave.surge_m + c * wave.sway_m, ssa(psi + wave.yaw_rad), u, v, r, tx, ty, tn,
+        return (t, north, east, ssa(psi), *_total_pose(north, east, psi, wave), u, v, r, tx, ty, tn,
                 peaks.omega_peak_rad_s, peaks.motion_peak_rad_s, factor, self._surge_mass)
 
     def _tau_act(self) -> tuple[float, float, float]:
