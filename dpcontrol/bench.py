@@ -21,6 +21,7 @@ import numpy as np
 
 from dpcontrol.models.thrusters import ThrusterSpec
 from dpcontrol.models.vessels import SUPPLY, VesselData
+from dpcontrol.platform_info import describe, machine_info
 from dpcontrol.runtime.config import DaemonConfig, parse_config
 from dpcontrol.runtime.inputs import SensorRouter
 from dpcontrol.runtime.step import DpController, Mode
@@ -84,8 +85,17 @@ def run_bench(iterations: int = 3000, warmup: int = 200, publish: bool = True) -
     Returns
     -------
     dict
-        ``{"iterations", "stages": {stage: {median_us, p99_us, max_us}}, "cycle": {...}}``.
+        ``{"iterations", "machine", "stages": {stage: {median_us, p99_us, max_us}}, "cycle": {...}}`` (``machine``:
+        :func:`~dpcontrol.platform_info.machine_info`, read before the run).
+
+    Raises
+    ------
+    ValueError
+        ``iterations`` < 1 or ``warmup`` < 0.
     """
+    if iterations < 1 or warmup < 0:
+        raise ValueError(f"run_bench needs iterations >= 1 and warmup >= 0, got {iterations} and {warmup}")
+    machine = machine_info()
     config = bench_config()
     controller = DpController(config, stage_clock=time.perf_counter)
     router = SensorRouter(config.routes, config.transports)
@@ -142,7 +152,7 @@ def run_bench(iterations: int = 3000, warmup: int = 200, publish: bool = True) -
         return {"median_us": round(float(np.median(values)), 1), "p99_us": round(float(np.percentile(values, 99)), 1),
                 "max_us": round(float(np.max(values)), 1)}
 
-    return {"iterations": iterations, "vessel": config.vessel.name, "thrusters": len(names),
+    return {"iterations": iterations, "machine": machine, "vessel": config.vessel.name, "thrusters": len(names),
             "estimator": f"{config.estimator.kind} N={len(config.estimator.wave_filter.omegas_rad_s)}",
             "control": config.control.kind,
             "stages": {name: stats(timings[:, i]) for i, name in enumerate(STAGES)},
@@ -156,4 +166,5 @@ def format_bench(result: dict[str, Any]) -> str:
              f"{'stage':<16}{'median µs':>12}{'p99 µs':>12}{'max µs':>12}"]
     for name, s in [*result["stages"].items(), ("full cycle", result["cycle"])]:
         lines.append(f"{name:<16}{s['median_us']:>12.1f}{s['p99_us']:>12.1f}{s['max_us']:>12.1f}")
+    lines.append(describe(result["machine"]))
     return "\n".join(lines)

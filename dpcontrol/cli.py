@@ -93,6 +93,17 @@ def _cmd_decode(args: argparse.Namespace) -> int:
     return 0
 
 
+def _positive_int(text: str) -> int:
+    """argparse type: a whole number >= 1 (a clear usage error instead of a traceback from the benchmark)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
+    return value
+
+
 def _cmd_bench(args: argparse.Namespace) -> int:
     from dpcontrol.bench import run_bench  # noqa: PLC0415
 
@@ -159,7 +170,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("bench", help="control-cycle latency benchmark")
     p.add_argument("--json", action="store_true")
-    p.add_argument("--iterations", type=int, default=3000)
+    p.add_argument("--iterations", type=_positive_int, default=3000, help="timed cycles (default 3000)")
     p.set_defaults(func=_cmd_bench)
 
     p = sub.add_parser("decode", help="decode a captured log to JSON lines")

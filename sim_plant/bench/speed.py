@@ -17,6 +17,7 @@ import itertools
 import time
 from typing import Any
 
+from dpcontrol.platform_info import describe, machine_info
 from sim_plant.bench.run import build_simulation
 from sim_plant.scenario import builtin_scenario_path, load_scenario
 
@@ -41,7 +42,7 @@ def _timed_run(name: str, overrides: dict[str, Any], duration_s: float) -> dict[
         for (t0, w0), (t1, w1) in itertools.pairwise(edges):
             if t1 > t0:
                 windows.append(round((w1 - w0) / (t1 - t0) * 1e3, 3))
-    return {"scenario": name, "simulated_s": duration_s, "steps": result.steps, "wall_s": round(wall, 2),
+    return {"scenario": name, "simulated_s": duration_s, "steps": result.steps, "wall_s": round(wall, 3),
             "speed_x_realtime": round(duration_s / wall, 1),
             "estimator": simulation.config.estimator.kind, "control": simulation.config.control.kind,
             "ms_per_simulated_s_by_tenth": windows,
@@ -49,8 +50,8 @@ def _timed_run(name: str, overrides: dict[str, Any], duration_s: float) -> dict[
 
 
 def run_speed_bench(tanker_duration_s: float = 43200.0, cs2_duration_s: float = 300.0) -> dict[str, Any]:
-    """Both runs (see the module docstring)."""
-    return {"runs": [
+    """Both runs (see the module docstring), and the machine they ran on (read before them)."""
+    return {"machine": machine_info(), "runs": [
         _timed_run("tanker-seed003", {"estimator": BANK_8, "control": {"kind": "mrac"}}, tanker_duration_s),
         _timed_run("cs2-seed000", {"estimator": BANK_8}, cs2_duration_s),
     ]}
@@ -63,4 +64,5 @@ def format_speed(result: dict[str, Any]) -> str:
         lines.append(f"  {run['scenario']:<16} {run['simulated_s']:>8.0f} s simulated in {run['wall_s']:>7.2f} s: "
                      f"{run['speed_x_realtime']:>7.1f}x real time ({run['estimator']}, {run['control']}); "
                      f"cost last/first tenth {run['last_to_first_tenth']}")
+    lines.append("  " + describe(result["machine"]))
     return "\n".join(lines)

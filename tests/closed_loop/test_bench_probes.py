@@ -1,0 +1,50 @@
+"""The two timing probes of ``benchmarks/`` in miniature: the lockstep stage breakdown accounts for the step
+it splits, and the cold-cache probe times the steps it says it times. (The numbers are the benchmarks'
+business; these keep their machinery honest on every commit.)"""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+from types import ModuleType
+
+BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
+
+
+def _load(name: str) -> ModuleType:
+    spec = importlib.util.spec_from_file_location(name, BENCHMARKS / f"{name}.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_stage_breakdown_accounts_for_the_step() -> None:
+    stages_benchmark = _load("bench_lockstep_stages")
+    result = stages_benchmark.run("tanker-seed003", duration_s=30.0)
+    steps = result["steps"]
+    assert steps == 301
+    stages = result["stages"]
+    for label in ("plant.advance", "controller.step", "hub.update", "estimator.step", "allocation",
+                  "record (time-series row)"):
+        assert stages[label]["calls"] >= steps - 1, label
+        assert stages[label]["us_per_step"] > 0.0, label
+    inner = ("hub.update", "estimator.step", "estimator.predicted_measurement", "force input", "control law",
+             "monitor.update", "allocation")
+    # the stages inside the step take less than the step; the loop's parts less than the loop
+    inside = sum(stages[label]["us_per_step"] for label in inner if label in stages)
+    assert inside < stages["controller.step"]["us_per_step"]
+    outer = ("plant.advance", "inputs.measurements (encode → decode → route)", "controller.step",
+             "record (time-series row)")
+    assert sum(stages[label]["us_per_step"] for label in outer) < result["us_per_step"]
+    table = stages_benchmark.format_table(result)
+    assert "controller.step" in table and "allocation" in table
+
+
+def test_cold_cache_probe_times_each_step_after_the_wait() -> None:
+    probe = _load("bench_cold_cache")
+    durations = probe._run("back-to-back", 12)
+    assert durations.shape == (12,)
+    assert (durations > 0.0).all() and (durations < 1e6).all()  # µs: a step, not a whole run

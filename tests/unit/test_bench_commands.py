@@ -1,0 +1,73 @@
+"""``dpcontrol bench`` and ``sim-plant bench`` as a user runs them (the real command lines, short runs): the
+reports hold what they claim to have measured, and the machine it was measured on."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+from dpcontrol.platform_info import describe, machine_info
+
+ENV = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
+
+
+def _run(module: str, *args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", module, *args], capture_output=True, text=True, timeout=300,
+                          env=ENV, check=False)
+
+
+def _check_machine(machine: dict[str, object]) -> None:
+    assert machine["cpu"] and isinstance(machine["cpu"], str)
+    assert isinstance(machine["usable_cpus"], int) and machine["usable_cpus"] >= 1
+    assert machine["usable_cpus"] <= machine["logical_cpus"]  # type: ignore[operator]
+    assert machine["python"] == ".".join(map(str, sys.version_info[:3]))
+    assert machine["libraries"]["numba"]  # type: ignore[index]
+
+
+def test_machine_info_describes_this_machine() -> None:
+    info = machine_info()
+    _check_machine(info)
+    assert info["usable_cpus"] == len(os.sched_getaffinity(0))
+    line = describe(info)
+    assert line.startswith("machine: ") and info["cpu"] in line and info["python"] in line
+
+
+def test_dpcontrol_bench_json_reports_stages_cycle_and_machine() -> None:
+    done = _run("dpcontrol.cli", "bench", "--iterations", "60", "--json")
+    assert done.returncode == 0, done.stderr
+    result = json.loads(done.stdout)
+    assert result["iterations"] == 60
+    _check_machine(result["machine"])
+    assert set(result["stages"]) == {"decode", "hub", "estimator", "control", "allocation", "encode_publish"}
+    for stats in [*result["stages"].values(), result["cycle"]]:
+        assert 0.0 < stats["median_us"] <= stats["p99_us"] <= stats["max_us"]
+    # the whole cycle holds every stage: its median is at least the largest stage median
+    assert result["cycle"]["median_us"] >= max(s["median_us"] for s in result["stages"].values())
+
+
+def test_dpcontrol_bench_rejects_a_count_below_one() -> None:
+    done = _run("dpcontrol.cli", "bench", "--iterations", "0")
+    assert done.returncode == 2
+    assert "expected a whole number >= 1" in done.stderr and "Traceback" not in done.stderr
+
+
+def test_sim_plant_bench_json_and_text_report_both_runs() -> None:
+    done = _run("sim_plant.cli", "bench", "--tanker-duration", "30", "--cs2-duration", "10", "--json")
+    assert done.returncode == 0, done.stderr
+    result = json.loads(done.stdout)
+    _check_machine(result["machine"])
+    runs = {run["scenario"]: run for run in result["runs"]}
+    assert set(runs) == {"tanker-seed003", "cs2-seed000"}
+    tanker = runs["tanker-seed003"]
+    assert tanker["steps"] == 301 and tanker["control"] == "mrac" and tanker["estimator"] == "mmae"
+    for run in runs.values():
+        assert run["wall_s"] > 0.0
+        # the speed is the simulated time over the wall time (both as reported: wall_s to 1 ms, speed to 0.1)
+        rounding = run["speed_x_realtime"] * 0.0005 / run["wall_s"] + 0.05
+        assert abs(run["speed_x_realtime"] - run["simulated_s"] / run["wall_s"]) <= rounding * 1.01
+        assert len(run["ms_per_simulated_s_by_tenth"]) == 10
+    text = _run("sim_plant.cli", "bench", "--tanker-duration", "10", "--cs2-duration", "5")
+    assert text.returncode == 0, text.stderr
+    assert "tanker-seed003" in text.stdout and "cs2-seed000" in text.stdout and "machine: " in text.stdout
