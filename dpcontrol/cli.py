@@ -45,6 +45,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         stats["resumed_from_state"] = daemon.resumed_from_state
         stats["state"] = daemon.state_detail
         stats["scheduling"] = daemon.realtime_detail
+        stats["replica"] = None if daemon.replica is None else daemon.replica.counters.as_dict()
         Path(args.stats_out).write_text(json.dumps(stats, indent=2) + "\n", encoding="utf-8")
     return code
 

@@ -125,6 +125,20 @@ class RealtimeSettings:
 
 
 @dataclass(frozen=True)
+class ReplicaSettings:
+    """The controller replica (``loop.replica_check``, ``loop.replica_lead_ms``;
+    :mod:`dpcontrol.runtime.replica`).
+
+    ``enabled``: keep a second controller one cycle behind that recomputes every command and
+    compares. ``lead_s``: how long before each deadline it runs [s] (it also warms the caches for
+    the primary's step; it must finish before the deadline, or the cycle starts late).
+    """
+
+    enabled: bool = True
+    lead_s: float = 0.003
+
+
+@dataclass(frozen=True)
 class DaemonConfig:
     """The whole validated configuration of ``dpcontrol run``."""
 
@@ -149,6 +163,7 @@ class DaemonConfig:
     source_text: str = ""
     source_file: str | None = None
     realtime: RealtimeSettings = field(default_factory=RealtimeSettings)
+    replica: ReplicaSettings = field(default_factory=ReplicaSettings)
 
     @property
     def sample_time_s(self) -> float:
@@ -360,6 +375,9 @@ def _parse(mapping: object, text: str, file: str | None) -> DaemonConfig:
                               raw_cpus)
         cpus = tuple(sorted(set(raw_cpus)))
     realtime = RealtimeSettings(priority, cpus)
+    # the replica runs in the last quarter of the period at most: the rest is the cycle's and the readers'
+    replica = ReplicaSettings(loop.boolean("replica_check", True),
+                              loop.number("replica_lead_ms", 3.0, minimum=0.5, maximum=250.0 / rate) / 1000.0)
     loop.finish()
 
     transports = parse_list(root, "transports", _parse_transport, required=True, min_items=1)
@@ -432,7 +450,7 @@ def _parse(mapping: object, text: str, file: str | None) -> DaemonConfig:
     root.finish()
     return DaemonConfig(vessel_id, vessel, datum, rate, initial_mode, auto_engage, tuple(transports), routes,
                         estimator, guidance, control, allocation, hub, fallback, monitor, zenoh, recorder, state,
-                        source_text=text, source_file=file, realtime=realtime)
+                        source_text=text, source_file=file, realtime=realtime, replica=replica)
 
 
 def load_config(path: str | Path) -> DaemonConfig:

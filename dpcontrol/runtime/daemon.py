@@ -19,6 +19,7 @@ status, saves its state, closes the recorder and exits 0.
 from __future__ import annotations
 
 import collections
+import copy
 import gc
 import itertools
 import logging
@@ -38,6 +39,7 @@ from dpcontrol.runtime.alarms import AlarmRegistry, Severity
 from dpcontrol.runtime.config import DaemonConfig, TransportConfig, config_summary
 from dpcontrol.runtime.inputs import SensorRouter, link_source
 from dpcontrol.runtime.persist import BackgroundSaver, StateStore
+from dpcontrol.runtime.replica import ControllerReplica
 from dpcontrol.runtime.step import DpController, Mode, StepOutput
 from dpcontrol.runtime.thrusters import ThrusterFeedback
 from dpcontrol.runtime.transport_health import InputHealth
@@ -303,6 +305,8 @@ class Daemon:
         self.notifier = notifier or SystemdNotifier()
         self.alarms = AlarmRegistry()
         self.controller = DpController(config, self.alarms)
+        self.replica: ControllerReplica | None = None
+        self._resumed_state: tuple[dict[str, Any], float] | None = None
         self.stats = LoopStats(config.sample_time_s)
         self._stop = threading.Event()
         self.recorder: Recorder | None = None
@@ -356,6 +360,11 @@ class Daemon:
         # The drives' (plant's) presence: its loss is a fault the operator must see.
         self._drives = node.watch_alive("plant")
         self.pump = InputPump(cfg, self.clock, self.recorder)
+        if cfg.replica.enabled:  # after _resume(): from the state the primary resumed from, if any
+            resumed = self._resumed_state
+            self.replica = ControllerReplica(cfg, self.alarms, self.pump.health.mark_links,
+                                             resumed_state=None if resumed is None else resumed[0],
+                                             resumed_t_s=0.0 if resumed is None else resumed[1])
         self.pump.start()
 
     def _resume(self) -> None:
@@ -368,8 +377,10 @@ class Daemon:
             return
         try:
             t_s = self.clock()
+            pristine = copy.deepcopy(result.state)  # for the controller replica (loading must not alter it)
             self.controller.load_state_dict(result.state, t_s)
             self.resumed_from_state = True
+            self._resumed_state = (pristine, t_s)
             if self.recorder is not None:
                 self.recorder.record("state_loaded", t_s, {"t_s": t_s, "state": result.state})
             log.info("resumed from persisted state (age %.1f s, mode %s)", result.age_s or 0.0,
@@ -378,6 +389,7 @@ class Daemon:
             self.state_detail = f"unusable: {error}"
             log.warning("persisted state unusable, cold start: %s", error)
             self.controller = DpController(self.config, self.alarms)
+            self._resumed_state = None
 
     def run(self, duration_s: float | None = None, install_signals: bool = True) -> int:
         """Run until SIGTERM/SIGINT (or ``duration_s``); returns the exit code (0 on a clean stop)."""
@@ -407,7 +419,18 @@ class Daemon:
         links: list[LinkStatus] = []
         consecutive_errors = 0
         watchdog_interval = self.notifier.watchdog_interval_s()
+        replica = self.replica
+        lead = self.config.replica.lead_s
         while not self._stop.is_set():
+            if replica is not None and replica.pending:
+                # The replica recomputes the last cycle just before this deadline: a check of the
+                # computation, and the primary's step then starts with warm caches. When the loop is
+                # already late it catches up after the next command instead (ControllerReplica.hold).
+                now = self.clock()
+                if now < deadline - lead:
+                    if self._stop.wait(deadline - lead - now):
+                        break
+                    replica.check(self.clock(), ahead=True)
             now = self.clock()
             if now < deadline and self._stop.wait(deadline - now):
                 break
@@ -503,7 +526,13 @@ class Daemon:
         seq = self._seq
         stepped_from = clock()
         try:
-            out = self.controller.step(t_s, measurements, feedback, requests)
+            try:
+                out = self.controller.step(t_s, measurements, feedback, requests)
+            except Exception as error:  # the replica must raise the same from the same inputs
+                if self.replica is not None:
+                    self.replica.hold(t_s, seq, None, measurements=measurements, feedback=feedback,
+                                      requests=requests, links=links, error=error)
+                raise
             stepped = clock()
             self._seq += 1
             self._publishers["command"].put(schemas.command_payload(
@@ -520,6 +549,9 @@ class Daemon:
                     "feedback": [[f.name, f.thrust_n, f.azimuth_rad, f.ready, f.t_s] for f in feedback],
                     "requests": [request_as_dict(r) for r in requests]})
         self.stats.add_phases((stepped_from - t_s) * 1e6, (stepped - stepped_from) * 1e6, (published - stepped) * 1e6)
+        if self.replica is not None:
+            self.replica.hold(t_s, seq, out, measurements=measurements, feedback=feedback, requests=requests,
+                              links=links)
         self._publish_rest(t_s, seq, out)
         self.pump.health.update_alarms(t_s, self.alarms)
         drives = self._drives.state

@@ -157,11 +157,17 @@ class InputHealth:
     def apply_links(self, t_s: float, links: Iterable[LinkStatus], hub: SensorHub, alarms: AlarmRegistry) -> None:
         """Mark the sensors of each changed link (dis)connected in the hub; raise/clear the link alarm."""
         for status in links:
-            for sensor in self.router.sensors_on(status.source):
-                hub.set_disconnected(sensor, not status.connected)
+            self.mark_links((status,), hub)
             detail = f" ({status.detail})" if status.detail else ""
             alarms.set(t_s, link_alarm_code(status.source), not status.connected, Severity.WARNING,
                        f"{status.source}: link lost{detail}")
+
+    def mark_links(self, links: Iterable[LinkStatus], hub: SensorHub) -> None:
+        """Mark the sensors of each changed link (dis)connected in ``hub`` (no alarm: the controller
+        replica's hub follows the primary's with this)."""
+        for status in links:
+            for sensor in self.router.sensors_on(status.source):
+                hub.set_disconnected(sensor, not status.connected)
 
     def update_alarms(self, t_s: float, alarms: AlarmRegistry) -> None:
         """Raise or clear each transport's error-rate alarm for the window ending at ``t_s``."""

@@ -147,3 +147,12 @@ def test_loop_timing_is_measured_and_reported(hil_run: dict) -> None:
     # the numbers themselves go to the README (benchmarks are not timed tests); they must exist
     for key in ("cycle_duration_us", "start_to_command_published_us", "period_jitter_us"):
         assert loop[key]["p99"] > 0.0
+
+
+def test_the_controller_replica_recomputed_every_command_the_same(hil_run: dict) -> None:
+    loop = hil_run["summary"]["dpcontrol_loop"]
+    replica = loop["replica"]
+    assert replica["mismatches"] == 0, replica["last_mismatch"]
+    # every cycle but the last (the daemon stops before its replica step) recomputed and compared
+    assert loop["cycles"] - 1 <= replica["compared"] == replica["stepped"] <= loop["cycles"]
+    assert replica["ahead_of_deadline"] >= 0.9 * replica["stepped"]  # warm for the next step, as designed

@@ -128,6 +128,8 @@ def test_restart_resumes_in_dp_without_a_command_jump(session: dict) -> None:
     stats = session["stats_after_restart"]
     assert stats["resumed_from_state"] is True, stats
     assert session["restart_code"] == 0
+    # the controller replica resumed from the same state: it agrees with the resumed primary
+    assert stats["replica"]["mismatches"] == 0 and stats["replica"]["compared"] > 0, stats["replica"]
     commands = _plant_commands(session["run_dir"])
     by_time: dict[float, dict[str, float]] = {}
     modes: dict[float, str] = {}

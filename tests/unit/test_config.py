@@ -10,7 +10,7 @@ import yaml
 
 from dpcontrol.cli import main
 from dpcontrol.models.schema import ConfigError
-from dpcontrol.runtime.config import RealtimeSettings, load_config, parse_config
+from dpcontrol.runtime.config import RealtimeSettings, ReplicaSettings, load_config, parse_config
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = sorted((ROOT / "deploy" / "config").glob("*.yaml"))
@@ -90,6 +90,9 @@ def test_every_shipped_example_validates(capsys: pytest.CaptureFixture[str]) -> 
     (lambda c: c.update(loop={"cpu_affinity": [-1]}), "loop.cpu_affinity"),
     (lambda c: c.update(loop={"cpu_affinity": 1}), "loop.cpu_affinity"),
     (lambda c: c.update(loop={"cpu_affinity": []}), "loop.cpu_affinity"),
+    (lambda c: c.update(loop={"replica_check": "yes"}), "loop.replica_check"),
+    (lambda c: c.update(loop={"replica_lead_ms": 0.1}), "loop.replica_lead_ms"),
+    (lambda c: c.update(loop={"rate_hz": 10, "replica_lead_ms": 30}), "loop.replica_lead_ms"),  # > period / 4
     (lambda c: c.update(recorder={"flush_s": 5}), "recorder.flush_s"),
     (lambda c: c.update(unknown_section={}), "unknown_section"),
 ])
@@ -140,3 +143,10 @@ def test_loop_scheduling_settings() -> None:
     assert parse_config(config).realtime == RealtimeSettings(None, ())
     config["loop"] = {"rate_hz": 10, "realtime_priority": 50, "cpu_affinity": [1, 0, 1]}
     assert parse_config(config).realtime == RealtimeSettings(50, (0, 1))
+
+
+def test_controller_replica_settings() -> None:
+    config = copy.deepcopy(BASE)
+    assert parse_config(config).replica == ReplicaSettings(True, 0.003)  # on by default, 3 ms ahead
+    config["loop"] = {"rate_hz": 20, "replica_check": False, "replica_lead_ms": 12.5}  # 12.5 ms = period / 4
+    assert parse_config(config).replica == ReplicaSettings(False, 0.0125)
