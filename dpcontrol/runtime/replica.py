@@ -21,9 +21,10 @@ things come of it:
 * **Warm caches at the deadline.** The replica runs the same code over data of the same shape just
   before the primary does, so the primary's step starts with the code and the interpreter's caches
   warm. On a shared 2-core VM the step otherwise runs at about 3× its back-to-back cost because the
-  host empties the caches between cycles (``benchmarks/bench_cold_cache.py``); on the HIL demo the
-  replica took the daemon's cycle start → command published p99 from 1.96–2.11 ms to about 1.6 ms
-  (README, benchmarks). After a mismatch the replica goes on stepping for this reason alone.
+  host empties the caches between cycles (``benchmarks/bench_cold_cache.py``). On the HIL demo, in
+  paired runs with the replica off and on, it took the median of the daemon's cycle start → command
+  published from about 1.5 to 1.2 ms (README, benchmarks). After a mismatch the replica goes on
+  stepping for this reason alone.
 
 The replica costs one more controller step per cycle (the loop's CPU time doubles: about 1 % of a
 core at 10 Hz) and the memory of a second model bank. ``loop.replica_check: false`` turns it off.
