@@ -239,14 +239,18 @@ class LoopStats:
     lateness of its start against the deadline (jitter), and where the time to the command went —
     ``inputs`` (draining the readers, links, setpoints, feedback), ``step`` (the
     controller step) and ``command`` (building and publishing the command) — over the last
-    ``TIMING_WINDOW`` cycles.
+    ``TIMING_WINDOW`` cycles. ``step_off_cpu`` is the part of ``step`` in which the loop thread did
+    not execute (its wall time less its thread CPU time, ``time.thread_time``): waiting for the GIL
+    that another thread of the daemon holds, or its virtual CPU taken by the host (steal time). It
+    tells a slow step that computed for long from one that waited — on the 2-core HIL VM the slow
+    cycles of the tail were mostly the second kind.
     """
 
     period_s: float
     durations_us: np.ndarray = field(default_factory=lambda: np.zeros(TIMING_WINDOW))
     publish_us: np.ndarray = field(default_factory=lambda: np.zeros(TIMING_WINDOW))
     jitter_us: np.ndarray = field(default_factory=lambda: np.zeros(TIMING_WINDOW))
-    phases_us: np.ndarray = field(default_factory=lambda: np.zeros((TIMING_WINDOW, 3)))
+    phases_us: np.ndarray = field(default_factory=lambda: np.zeros((TIMING_WINDOW, 4)))
     count: int = 0
     missed_deadlines: int = 0
     step_errors: int = 0
@@ -258,12 +262,14 @@ class LoopStats:
         self.jitter_us[i] = jitter_us
         self.count += 1
 
-    def add_phases(self, inputs_us: float, step_us: float, command_us: float) -> None:
-        """The phases of the cycle being timed (call before :meth:`add`)."""
+    def add_phases(self, inputs_us: float, step_us: float, command_us: float, step_cpu_us: float) -> None:
+        """The phases of the cycle being timed (call before :meth:`add`); ``step_cpu_us`` is the loop
+        thread's CPU time during the step."""
         row = self.phases_us[self.count % TIMING_WINDOW]
         row[0] = inputs_us
         row[1] = step_us
         row[2] = command_us
+        row[3] = max(0.0, step_us - step_cpu_us)  # the two clocks differ by their resolution
 
     def summary(self) -> dict[str, Any]:
         n = min(self.count, TIMING_WINDOW)
@@ -281,7 +287,7 @@ class LoopStats:
                 "start_to_command_published_us": stats(self.publish_us),
                 "period_jitter_us": stats(np.abs(self.jitter_us)),
                 "phases_us": {"inputs": stats(phases[:, 0]), "step": stats(phases[:, 1]),
-                              "command": stats(phases[:, 2])}}
+                              "command": stats(phases[:, 2]), "step_off_cpu": stats(phases[:, 3])}}
 
 
 class Daemon:
@@ -525,6 +531,7 @@ class Daemon:
         clock = self.clock
         seq = self._seq
         stepped_from = clock()
+        cpu_from = time.thread_time()
         try:
             try:
                 out = self.controller.step(t_s, measurements, feedback, requests)
@@ -534,6 +541,7 @@ class Daemon:
                                       requests=requests, links=links, error=error)
                 raise
             stepped = clock()
+            step_cpu = time.thread_time() - cpu_from
             self._seq += 1
             self._publishers["command"].put(schemas.command_payload(
                 t_s=t_s, seq=seq, mode=out.mode.value, names=self._names, thrust_n=out.thrust_n,
@@ -548,7 +556,8 @@ class Daemon:
                     "links": [[status.source, status.connected, status.detail] for status in links],
                     "feedback": [[f.name, f.thrust_n, f.azimuth_rad, f.ready, f.t_s] for f in feedback],
                     "requests": [request_as_dict(r) for r in requests]})
-        self.stats.add_phases((stepped_from - t_s) * 1e6, (stepped - stepped_from) * 1e6, (published - stepped) * 1e6)
+        self.stats.add_phases((stepped_from - t_s) * 1e6, (stepped - stepped_from) * 1e6, (published - stepped) * 1e6,
+                              step_cpu * 1e6)
         if self.replica is not None:
             self.replica.hold(t_s, seq, out, measurements=measurements, feedback=feedback, requests=requests,
                               links=links)

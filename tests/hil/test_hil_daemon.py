@@ -147,6 +147,9 @@ def test_loop_timing_is_measured_and_reported(hil_run: dict) -> None:
     # the numbers themselves go to the README (benchmarks are not timed tests); they must exist
     for key in ("cycle_duration_us", "start_to_command_published_us", "period_jitter_us"):
         assert loop[key]["p99"] > 0.0
+    phases = loop["phases_us"]
+    for stat in ("median", "p99", "max"):
+        assert 0.0 <= phases["step_off_cpu"][stat] <= phases["step"][stat]
 
 
 def test_the_controller_replica_recomputed_every_command_the_same(hil_run: dict) -> None:
