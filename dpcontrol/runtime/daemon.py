@@ -312,6 +312,7 @@ class Daemon:
         self.alarms = AlarmRegistry()
         self.controller = DpController(config, self.alarms)
         self.replica: ControllerReplica | None = None
+        # the persisted state the controller resumed from (a copy taken before loading) and when
         self._resumed_state: tuple[dict[str, Any], float] | None = None
         self.stats = LoopStats(config.sample_time_s)
         self._stop = threading.Event()
@@ -326,11 +327,15 @@ class Daemon:
         self._last_state_save = -math.inf
         self._last_stats_t = -math.inf
         self._cycle_summary: dict[str, Any] = {}
-        self.resumed_from_state = False
         self.realtime_detail = "normal scheduler"
         self.state_detail = ""
         self._setpoints_rejected = 0
         self._setpoint_rejected_t = -math.inf
+
+    @property
+    def resumed_from_state(self) -> bool:
+        """The controller resumed from a persisted state (else it started cold)."""
+        return self._resumed_state is not None
 
     # ---------------------------------------------------------------- life cycle
     def request_stop(self, *_: Any) -> None:
@@ -385,7 +390,6 @@ class Daemon:
             t_s = self.clock()
             pristine = copy.deepcopy(result.state)  # for the controller replica (loading must not alter it)
             self.controller.load_state_dict(result.state, t_s)
-            self.resumed_from_state = True
             self._resumed_state = (pristine, t_s)
             if self.recorder is not None:
                 self.recorder.record("state_loaded", t_s, {"t_s": t_s, "state": result.state})

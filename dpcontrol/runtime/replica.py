@@ -33,7 +33,7 @@ core at 10 Hz) and the memory of a second model bank. ``loop.replica_check: fals
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -122,16 +122,16 @@ class ControllerReplica:
     mark_links : callable
         Applies link changes to a hub as the daemon does to the primary's
         (:meth:`dpcontrol.runtime.transport_health.InputHealth.mark_links`).
-    resumed_state : mapping, optional
-        The persisted state the primary was resumed from, and ``resumed_t_s`` the time it was
-        loaded at [s]: the replica loads the same.
+    resumed_state : dict, optional
+        The persisted state the primary was resumed from (a copy: loading may alter it), and
+        ``resumed_t_s`` the time it was loaded at [s]: the replica loads the same.
     """
 
     def __init__(self, config: DaemonConfig, alarms: AlarmRegistry, mark_links: MarkLinks, *,
-                 resumed_state: Mapping[str, Any] | None = None, resumed_t_s: float = 0.0) -> None:
+                 resumed_state: dict[str, Any] | None = None, resumed_t_s: float = 0.0) -> None:
         self.controller = DpController(config, AlarmRegistry())
         if resumed_state is not None:
-            self.controller.load_state_dict(dict(resumed_state), resumed_t_s)
+            self.controller.load_state_dict(resumed_state, resumed_t_s)
         self.alarms = alarms
         self.mark_links = mark_links
         self.counters = ReplicaCounters()
