@@ -46,6 +46,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
         stats["state"] = daemon.state_detail
         stats["scheduling"] = daemon.realtime_detail
         stats["replica"] = None if daemon.replica is None else daemon.replica.counters.as_dict()
+        spinner = daemon.spinner
+        stats["deadline_spin"] = None if spinner is None else {
+            "window_ms": config.realtime.spin_s * 1e3, "slice_iterations": spinner.iterations,
+            "spun_s": round(spinner.spun_s, 3)}
         Path(args.stats_out).write_text(json.dumps(stats, indent=2) + "\n", encoding="utf-8")
     return code
 

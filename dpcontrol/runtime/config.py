@@ -112,16 +112,20 @@ class StateSettings:
 
 @dataclass(frozen=True)
 class RealtimeSettings:
-    """Scheduling of the control loop's thread (``loop.realtime_priority``, ``loop.cpu_affinity``).
+    """Scheduling of the control loop's thread (``loop.realtime_priority``, ``loop.cpu_affinity``,
+    ``loop.deadline_spin_ms``).
 
     ``priority`` (1–99): SCHED_FIFO at that priority for the loop thread only — the sensor readers
     and Zenoh's threads stay at normal priority, so the loop preempts them (and any other process)
     the moment its deadline comes; None keeps the normal scheduler. ``cpus``: the CPUs the loop
-    thread may run on (empty: any).
+    thread may run on (empty: any). ``spin_s``: the loop sleeps until this long before each
+    deadline and spins the rest, with the GIL released (:mod:`dpcontrol.runtime.spin`), so the
+    cycle starts on time instead of a wake-up latency late [s]; 0 sleeps to the deadline.
     """
 
     priority: int | None = None
     cpus: tuple[int, ...] = ()
+    spin_s: float = 0.002
 
 
 @dataclass(frozen=True)
@@ -374,7 +378,9 @@ def _parse(mapping: object, text: str, file: str | None) -> DaemonConfig:
             raise ConfigError(join(loop.path, "cpu_affinity"), "a non-empty list of CPU numbers (integers >= 0)",
                               raw_cpus)
         cpus = tuple(sorted(set(raw_cpus)))
-    realtime = RealtimeSettings(priority, cpus)
+    # spinning costs its CPU time: a quarter of the period at most, like the replica's lead
+    realtime = RealtimeSettings(priority, cpus,
+                                loop.number("deadline_spin_ms", 2.0, minimum=0.0, maximum=250.0 / rate) / 1000.0)
     # the replica runs in the last quarter of the period at most: the rest is the cycle's and the readers'
     replica = ReplicaSettings(loop.boolean("replica_check", True),
                               loop.number("replica_lead_ms", 3.0, minimum=0.5, maximum=250.0 / rate) / 1000.0)

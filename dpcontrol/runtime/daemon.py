@@ -10,7 +10,9 @@ the watchdog would keep a hung loop "alive").
 
 Deadline scheduling: deadlines are ``t0 + k·T``; a late cycle runs at once, cycles that are missed
 entirely are counted and skipped (the next deadline is the next one in the future), so the loop
-never drifts and never bursts.
+never drifts and never bursts. The loop sleeps until ``loop.deadline_spin_ms`` before a deadline and
+spins the rest with the GIL released (:mod:`dpcontrol.runtime.spin`): the cycle starts within
+~20 µs of its deadline instead of a timer wake-up later.
 
 SIGTERM/SIGINT: the loop commands zero thrust (standby) as its last command, publishes a final
 status, saves its state, closes the recorder and exits 0.
@@ -40,6 +42,7 @@ from dpcontrol.runtime.config import DaemonConfig, TransportConfig, config_summa
 from dpcontrol.runtime.inputs import SensorRouter, link_source
 from dpcontrol.runtime.persist import BackgroundSaver, StateStore
 from dpcontrol.runtime.replica import ControllerReplica
+from dpcontrol.runtime.spin import DeadlineSpinner
 from dpcontrol.runtime.step import DpController, Mode, StepOutput
 from dpcontrol.runtime.thrusters import ThrusterFeedback
 from dpcontrol.runtime.transport_health import InputHealth
@@ -312,6 +315,7 @@ class Daemon:
         self.alarms = AlarmRegistry()
         self.controller = DpController(config, self.alarms)
         self.replica: ControllerReplica | None = None
+        self.spinner: DeadlineSpinner | None = None  # (loop.deadline_spin_ms; built when the loop starts)
         # the persisted state the controller resumed from (a copy taken before loading) and when
         self._resumed_state: tuple[dict[str, Any], float] | None = None
         self.stats = LoopStats(config.sample_time_s)
@@ -431,6 +435,8 @@ class Daemon:
         watchdog_interval = self.notifier.watchdog_interval_s()
         replica = self.replica
         lead = self.config.replica.lead_s
+        spin = self.config.realtime.spin_s
+        spinner = self.spinner = DeadlineSpinner(self.clock) if spin > 0.0 else None
         while not self._stop.is_set():
             if replica is not None and replica.pending:
                 # The replica recomputes the last cycle just before this deadline: a check of the
@@ -442,8 +448,15 @@ class Daemon:
                         break
                     replica.check(self.clock(), ahead=True)
             now = self.clock()
-            if now < deadline and self._stop.wait(deadline - now):
-                break
+            if now < deadline:
+                if spinner is None:
+                    if self._stop.wait(deadline - now):
+                        break
+                else:  # sleep to the spin window, spin the rest (dpcontrol/runtime/spin.py says why)
+                    if now < deadline - spin and self._stop.wait(deadline - spin - now):
+                        break
+                    if spinner.until(deadline, self._stop):
+                        break
             start = self.clock()
             if end is not None and start >= end:
                 break

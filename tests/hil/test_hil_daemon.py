@@ -150,6 +150,10 @@ def test_loop_timing_is_measured_and_reported(hil_run: dict) -> None:
     phases = loop["phases_us"]
     for stat in ("median", "p99", "max"):
         assert 0.0 <= phases["step_off_cpu"][stat] <= phases["step"][stat]
+    # the loop spun (GIL released) up to each deadline, at most its 2 ms window per cycle
+    spin = loop["deadline_spin"]
+    assert spin["window_ms"] == 2.0 and spin["slice_iterations"] >= 100
+    assert 0.0 < spin["spun_s"] <= loop["cycles"] * 0.0021
 
 
 def test_the_controller_replica_recomputed_every_command_the_same(hil_run: dict) -> None:

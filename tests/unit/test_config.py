@@ -90,6 +90,9 @@ def test_every_shipped_example_validates(capsys: pytest.CaptureFixture[str]) -> 
     (lambda c: c.update(loop={"cpu_affinity": [-1]}), "loop.cpu_affinity"),
     (lambda c: c.update(loop={"cpu_affinity": 1}), "loop.cpu_affinity"),
     (lambda c: c.update(loop={"cpu_affinity": []}), "loop.cpu_affinity"),
+    (lambda c: c.update(loop={"deadline_spin_ms": -1}), "loop.deadline_spin_ms"),
+    (lambda c: c.update(loop={"rate_hz": 10, "deadline_spin_ms": 26}), "loop.deadline_spin_ms"),  # > period / 4
+    (lambda c: c.update(loop={"deadline_spin_ms": "on"}), "loop.deadline_spin_ms"),
     (lambda c: c.update(loop={"replica_check": "yes"}), "loop.replica_check"),
     (lambda c: c.update(loop={"replica_lead_ms": 0.1}), "loop.replica_lead_ms"),
     (lambda c: c.update(loop={"rate_hz": 10, "replica_lead_ms": 30}), "loop.replica_lead_ms"),  # > period / 4
@@ -140,9 +143,11 @@ def test_daemon_refuses_to_start_on_an_invalid_config(tmp_path: Path, capsys: py
 
 def test_loop_scheduling_settings() -> None:
     config = copy.deepcopy(BASE)
-    assert parse_config(config).realtime == RealtimeSettings(None, ())
-    config["loop"] = {"rate_hz": 10, "realtime_priority": 50, "cpu_affinity": [1, 0, 1]}
-    assert parse_config(config).realtime == RealtimeSettings(50, (0, 1))
+    assert parse_config(config).realtime == RealtimeSettings(None, (), 0.002)  # spins the last 2 ms by default
+    config["loop"] = {"rate_hz": 10, "realtime_priority": 50, "cpu_affinity": [1, 0, 1], "deadline_spin_ms": 0}
+    assert parse_config(config).realtime == RealtimeSettings(50, (0, 1), 0.0)
+    config["loop"] = {"rate_hz": 20, "deadline_spin_ms": 12.5}  # 12.5 ms = period / 4
+    assert parse_config(config).realtime.spin_s == 0.0125
 
 
 def test_controller_replica_settings() -> None:
