@@ -5,7 +5,9 @@ CPU by the scheduler — on a virtual machine also by the host, which may have g
 another guest meanwhile. The cycle then starts late by that wake-up latency. On the 2-core HIL VM
 (2026-12-02, the demo configuration, SCHED_FIFO 50, 90 s runs) the period jitter was 93–96 µs median
 and 0.84–1.26 ms p99 with a sleep, 10 µs median and 0.02–0.41 ms p99 spinning the last 2 ms. The cost
-is the spun time: at most ``loop.deadline_spin_ms`` per period (2 ms of 100 ms: 2 % of one core).
+is the spun time: at most ``loop.deadline_spin_ms`` per period (2 ms of 100 ms: 2 % of one core). On a
+single CPU, a SCHED_FIFO loop that spins keeps the (normal-priority) sensor readers off it for that time:
+there, 0 (sleep to the deadline) is the better setting.
 
 Why a compiled kernel and not a Python ``while clock() < deadline: pass``: a Python loop holds the
 GIL. The sensor reader threads then queue for it and take it at the control step's first kernel call
