@@ -42,7 +42,7 @@ from dpcontrol.runtime.config import DaemonConfig, TransportConfig, config_summa
 from dpcontrol.runtime.inputs import SensorRouter, link_source
 from dpcontrol.runtime.persist import BackgroundSaver, StateStore
 from dpcontrol.runtime.replica import ControllerReplica
-from dpcontrol.runtime.spin import DeadlineSpinner
+from dpcontrol.runtime.spin import DeadlineSpinner, loop_spinner
 from dpcontrol.runtime.step import DpController, Mode, StepOutput
 from dpcontrol.runtime.thrusters import ThrusterFeedback
 from dpcontrol.runtime.transport_health import InputHealth
@@ -422,6 +422,9 @@ class Daemon:
         # the demo configuration, 1 µs after gc.freeze()).
         gc.collect()
         gc.freeze()
+        # the CPUs the readers and Zenoh's threads may use (before the loop thread pins itself): with one, a
+        # spinning loop would keep them off it, so the loop sleeps to its deadlines (dpcontrol/runtime/spin.py)
+        shared_cpus = len(os.sched_getaffinity(0))
         # after _open(): the reader and Zenoh threads exist already and keep the normal scheduler
         self._apply_realtime()
         period = self.config.sample_time_s
@@ -436,7 +439,9 @@ class Daemon:
         replica = self.replica
         lead = self.config.replica.lead_s
         spin = self.config.realtime.spin_s
-        spinner = self.spinner = DeadlineSpinner(self.clock) if spin > 0.0 else None
+        spinner = self.spinner = loop_spinner(spin, self.clock, shared_cpus)
+        if spin > 0.0 and spinner is None:
+            log.info("loop.deadline_spin_ms: not spinning on a single CPU (the sensor readers need it)")
         while not self._stop.is_set():
             if replica is not None and replica.pending:
                 # The replica recomputes the last cycle just before this deadline: a check of the

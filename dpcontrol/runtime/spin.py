@@ -6,8 +6,8 @@ another guest meanwhile. The cycle then starts late by that wake-up latency. On 
 (2026-12-02, the demo configuration, SCHED_FIFO 50, 90 s runs) the period jitter was 93–96 µs median
 and 0.84–1.26 ms p99 with a sleep, 10 µs median and 0.02–0.41 ms p99 spinning the last 2 ms. The cost
 is the spun time: at most ``loop.deadline_spin_ms`` per period (2 ms of 100 ms: 2 % of one core). On a
-single CPU, a SCHED_FIFO loop that spins keeps the (normal-priority) sensor readers off it for that time:
-there, 0 (sleep to the deadline) is the better setting.
+single CPU, a SCHED_FIFO loop that spins would keep the (normal-priority) sensor readers off it for that
+time: there the daemon sleeps to its deadlines whatever the setting.
 
 Why a compiled kernel and not a Python ``while clock() < deadline: pass``: a Python loop holds the
 GIL. The sensor reader threads then queue for it and take it at the control step's first kernel call
@@ -84,3 +84,12 @@ class DeadlineSpinner:
             return False
         finally:
             self.spun_s += now - start
+
+
+def loop_spinner(spin_s: float, clock: Callable[[], float], shared_cpus: int) -> DeadlineSpinner | None:
+    """The control loop's spinner for ``loop.deadline_spin_ms`` (as ``spin_s`` [s]), or None to sleep to the
+    deadlines: when the setting is 0, or when the process has a single CPU (``shared_cpus``, counted before
+    the loop thread pins itself) that the sensor readers would be kept off while the loop spins."""
+    if spin_s <= 0.0 or shared_cpus < 2:
+        return None
+    return DeadlineSpinner(clock)

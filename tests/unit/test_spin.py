@@ -7,7 +7,13 @@ import time
 
 import pytest
 
-from dpcontrol.runtime.spin import MAX_ITERATIONS, MIN_ITERATIONS, DeadlineSpinner, slice_iterations
+from dpcontrol.runtime.spin import (
+    MAX_ITERATIONS,
+    MIN_ITERATIONS,
+    DeadlineSpinner,
+    loop_spinner,
+    slice_iterations,
+)
 
 
 @pytest.fixture(scope="module")
@@ -80,3 +86,9 @@ def test_the_slice_is_calibrated_and_bounded() -> None:
     assert slice_iterations(clock=lambda: 0.0) == MAX_ITERATIONS  # a clock that does not move
     with pytest.raises(ValueError, match="slice_s"):
         slice_iterations(0.0)
+
+
+def test_the_loop_spins_only_when_set_and_with_a_cpu_to_spare() -> None:
+    assert isinstance(loop_spinner(0.002, time.monotonic, 2), DeadlineSpinner)
+    assert loop_spinner(0.0, time.monotonic, 2) is None  # loop.deadline_spin_ms: 0
+    assert loop_spinner(0.002, time.monotonic, 1) is None  # one CPU: the readers would wait for it
