@@ -11,8 +11,8 @@ the watchdog would keep a hung loop "alive").
 Deadline scheduling: deadlines are ``t0 + k·T``; a late cycle runs at once, cycles that are missed
 entirely are counted and skipped (the next deadline is the next one in the future), so the loop
 never drifts and never bursts. The loop sleeps until ``loop.deadline_spin_ms`` before a deadline and
-spins the rest with the GIL released (:mod:`dpcontrol.runtime.spin`): the cycle starts within
-~20 µs of its deadline instead of a timer wake-up later.
+spins the rest with the GIL released (:mod:`dpcontrol.runtime.spin`): the cycle typically starts
+within one ~20 µs spin slice of its deadline instead of a timer wake-up later.
 
 SIGTERM/SIGINT: the loop commands zero thrust (standby) as its last command, publishes a final
 status, saves its state, closes the recorder and exits 0.
