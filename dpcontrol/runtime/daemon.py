@@ -440,28 +440,21 @@ class Daemon:
         lead = self.config.replica.lead_s
         spin = self.config.realtime.spin_s
         spinner = self.spinner = loop_spinner(spin, self.clock, shared_cpus)
-        if spin > 0.0 and spinner is None:
-            log.info("loop.deadline_spin_ms: not spinning on a single CPU (the sensor readers need it)")
+        if spinner is None:
+            if spin > 0.0:
+                log.info("loop.deadline_spin_ms: not spinning on a single CPU (the sensor readers need it)")
+            spin = 0.0  # sleep all the way to each deadline
         while not self._stop.is_set():
-            if replica is not None and replica.pending:
-                # The replica recomputes the last cycle just before this deadline: a check of the
-                # computation, and the primary's step then starts with warm caches. When the loop is
-                # already late it catches up after the next command instead (ControllerReplica.hold).
-                now = self.clock()
-                if now < deadline - lead:
-                    if self._stop.wait(deadline - lead - now):
-                        break
-                    replica.check(self.clock(), ahead=True)
-            now = self.clock()
-            if now < deadline:
-                if spinner is None:
-                    if self._stop.wait(deadline - now):
-                        break
-                else:  # sleep to the spin window, spin the rest (dpcontrol/runtime/spin.py says why)
-                    if now < deadline - spin and self._stop.wait(deadline - spin - now):
-                        break
-                    if spinner.until(deadline, self._stop):
-                        break
+            # The replica recomputes the last cycle just before this deadline: a check of the computation,
+            # and the primary's step then starts with warm caches. When the loop is already late it catches
+            # up after the next command instead (ControllerReplica.hold).
+            if replica is not None and replica.pending and self.clock() < deadline - lead:
+                if self._sleep_until(deadline - lead):
+                    break
+                replica.check(self.clock(), ahead=True)
+            # sleep to the spin window, spin the rest (dpcontrol/runtime/spin.py says why)
+            if self._sleep_until(deadline - spin) or (spinner is not None and spinner.until(deadline, self._stop)):
+                break
             start = self.clock()
             if end is not None and start >= end:
                 break
@@ -498,6 +491,11 @@ class Daemon:
                 deadline += skipped * period
         self._shutdown()
         return 0
+
+    def _sleep_until(self, t_s: float) -> bool:
+        """Sleep until ``t_s`` on the loop's clock (not at all once it is past); True if a stop was requested."""
+        now = self.clock()
+        return now < t_s and self._stop.wait(t_s - now)
 
     def _apply_realtime(self) -> None:
         """``loop.realtime_priority`` / ``loop.cpu_affinity`` for this (the loop's) thread.
