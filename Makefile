@@ -2,11 +2,14 @@
 # Both create ./.venv on first use and install the project with its dependencies.
 # The interpreter ./.venv is made from: the distribution's /usr/bin/python3 when there is one (3.10 or newer),
 # else python3 on PATH; `make PYTHON=/path/to/python3 ...` chooses another. Why the distribution's: it is what
-# a vessel's systemd service runs on (README, "Install on a vessel"), and distributions build CPython with
+# a vessel's systemd service runs on (README, "Installing on a vessel"), and distributions build CPython with
 # profile-guided and link-time optimisation as a static interpreter: the lockstep benchmark ran 12-22 % faster
 # on Debian's 3.11.2 than on a default source build beside it (pyenv's 3.11.7: shared libpython, no PGO).
-PYTHON ?= $(shell /usr/bin/python3 -c 'import sys; sys.exit(sys.version_info < (3, 10))' 2>/dev/null \
+# (`:=`, not `?=`: the probe runs once per make, not at every use of $(PYTHON))
+ifeq ($(origin PYTHON),undefined)
+PYTHON := $(shell /usr/bin/python3 -c 'import sys; sys.exit(sys.version_info < (3, 10))' 2>/dev/null \
 	&& echo /usr/bin/python3 || echo python3)
+endif
 # One BLAS thread: the numeric core works on small matrices, where a threaded BLAS only costs
 # (a 10x10 expm went from 37 µs to 4 ms on a loaded 2-core machine).
 export OPENBLAS_NUM_THREADS := 1
