@@ -18,6 +18,14 @@ On the 2026-12-02 development VM (2 cores, idle): 186 µs back to back, 632 µs 
 after busy-waiting (×3.2) — so not the sleep: the host's other work. Dedicated hardware should show ratios
 near 1.
 
+The same holds for the kernel, which the daemon enters after its step to publish the command. The
+``kernel`` part times, in CPU time of the calling thread, a trivial system call (``getppid``) and the send of
+one 645-byte datagram (the size of a thruster command) to a socket of this process on 127.0.0.1 — no reader
+is woken, so it is the send path alone — back to back and after busy-waiting 2, 10 and 100 ms in Python.
+On the 2026-12-02 development VM (a Firecracker micro-VM): the system call 1.5 µs back to back, 20 µs after
+10 ms; the send 7 µs back to back, ~100 µs after 10 ms. That is most of the daemon's "command" phase
+(``phases_us.command`` in a demo's summary: 110–220 µs median), whatever the daemon does.
+
 Usage::
 
     .venv/bin/python benchmarks/bench_cold_cache.py [--steps 150] [--json]
@@ -27,6 +35,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
+import socket
 import time
 from typing import Any
 
@@ -71,9 +81,52 @@ def _run(mode: str, steps: int) -> np.ndarray:
     return np.array(durations[settled:]) * 1e6
 
 
-def run(steps: int = 150) -> dict[str, Any]:
-    """Median / p99 step duration [µs] per mode and the ratios to back-to-back."""
-    result: dict[str, Any] = {"steps": steps, "modes": {}}
+KERNEL_GAPS_S = (0.0, 0.002, 0.01, 0.1)
+COMMAND_BYTES = 645  # a six-thruster command payload (interfaces.zenoh.schemas.command_payload)
+
+
+def _busy_wait(duration_s: float) -> None:
+    end = time.perf_counter() + duration_s
+    while time.perf_counter() < end:
+        pass
+
+
+def _kernel(samples: int) -> dict[str, dict[str, float]]:
+    """Median CPU time [µs] of a system call and of a loopback datagram send, per busy-wait gap before it.
+
+    The datagrams go to a socket of this process bound on 127.0.0.1 that is never read: ``samples`` per gap
+    (at most 4 × ``samples`` × 645 bytes in all, within the default receive buffer or dropped by the kernel).
+    """
+    receiver = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        receiver.bind(("127.0.0.1", 0))
+        address = receiver.getsockname()
+        payload = b"x" * COMMAND_BYTES
+        cpu = time.thread_time
+        out: dict[str, dict[str, float]] = {}
+        for gap in KERNEL_GAPS_S:
+            syscall, send = [], []
+            for _ in range(samples):
+                _busy_wait(gap)
+                start = cpu()
+                os.getppid()
+                syscall.append(cpu() - start)
+                _busy_wait(gap)
+                start = cpu()
+                sender.sendto(payload, address)
+                send.append(cpu() - start)
+            out[f"{gap * 1e3:g} ms"] = {"syscall_us": round(float(np.median(syscall)) * 1e6, 1),
+                                        "udp_send_us": round(float(np.median(send)) * 1e6, 1)}
+        return out
+    finally:
+        sender.close()
+        receiver.close()
+
+
+def run(steps: int = 150, kernel_samples: int = 40) -> dict[str, Any]:
+    """Median / p99 step duration [µs] per mode and the ratios to back-to-back; the kernel probe per gap."""
+    result: dict[str, Any] = {"steps": steps, "modes": {}, "kernel": _kernel(kernel_samples)}
     for mode in ("back-to-back", "sleep", "busy"):
         durations = _run(mode, steps)
         result["modes"][mode] = {"median_us": round(float(np.median(durations)), 1),
@@ -98,6 +151,10 @@ def main() -> None:
         ratio = row.get("ratio_to_back_to_back")
         print(f"{mode:13s} median {row['median_us']:7.1f} µs  p99 {row['p99_us']:7.1f} µs"
               + (f"  ×{ratio:.2f}" if ratio is not None else ""))
+    print("kernel, CPU time of the calling thread (medians) after busy-waiting:")
+    for gap, row in result["kernel"].items():
+        print(f"  {gap:>6s}  getppid {row['syscall_us']:6.1f} µs  "
+              f"645-byte UDP send to 127.0.0.1 {row['udp_send_us']:6.1f} µs")
 
 
 if __name__ == "__main__":

@@ -21,7 +21,7 @@ import numpy as np
 
 from dpcontrol.models.thrusters import ThrusterSpec
 from dpcontrol.models.vessels import SUPPLY, VesselData
-from dpcontrol.platform_info import describe, machine_info
+from dpcontrol.platform_info import cpu_times, describe, describe_steal, host_steal, machine_info
 from dpcontrol.runtime.config import DaemonConfig, parse_config
 from dpcontrol.runtime.inputs import SensorRouter
 from dpcontrol.runtime.step import DpController, Mode
@@ -85,8 +85,9 @@ def run_bench(iterations: int = 3000, warmup: int = 200, publish: bool = True) -
     Returns
     -------
     dict
-        ``{"iterations", "machine", "stages": {stage: {median_us, p99_us, max_us}}, "cycle": {...}}`` (``machine``:
-        :func:`~dpcontrol.platform_info.machine_info`, read before the run).
+        ``{"iterations", "machine", "stages": {stage: {median_us, p99_us, max_us}}, "cycle": {...}, "host_steal"}``
+        (``machine``: :func:`~dpcontrol.platform_info.machine_info`, read before the run; ``host_steal``:
+        :func:`~dpcontrol.platform_info.host_steal` over the run, None where it cannot be read).
 
     Raises
     ------
@@ -113,6 +114,7 @@ def run_bench(iterations: int = 3000, warmup: int = 200, publish: bool = True) -
     timings = np.zeros((iterations, len(STAGES) + 1))
     measurements: list[Measurement] = []
     clock = time.perf_counter_ns
+    ticks = cpu_times()
     try:
         for k in range(iterations + warmup):
             t = k * dt
@@ -145,6 +147,7 @@ def run_bench(iterations: int = 3000, warmup: int = 200, publish: bool = True) -
     finally:
         if node is not None:
             node.close()
+    steal = host_steal(ticks, cpu_times())
     if controller.mode is not Mode.AUTO_POSITION:
         raise RuntimeError(f"the bench vessel did not reach DP (mode {controller.mode.value})")
 
@@ -156,7 +159,7 @@ def run_bench(iterations: int = 3000, warmup: int = 200, publish: bool = True) -
             "estimator": f"{config.estimator.kind} N={len(config.estimator.wave_filter.omegas_rad_s)}",
             "control": config.control.kind,
             "stages": {name: stats(timings[:, i]) for i, name in enumerate(STAGES)},
-            "cycle": stats(timings[:, -1])}
+            "cycle": stats(timings[:, -1]), "host_steal": steal}
 
 
 def format_bench(result: dict[str, Any]) -> str:
@@ -167,4 +170,5 @@ def format_bench(result: dict[str, Any]) -> str:
     for name, s in [*result["stages"].items(), ("full cycle", result["cycle"])]:
         lines.append(f"{name:<16}{s['median_us']:>12.1f}{s['p99_us']:>12.1f}{s['max_us']:>12.1f}")
     lines.append(describe(result["machine"]))
+    lines.append(f"during the run: {describe_steal(result['host_steal'])}")
     return "\n".join(lines)

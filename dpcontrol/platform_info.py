@@ -1,7 +1,9 @@
 """The machine a benchmark ran on, for its report: a timing means little without the CPU, the cores it had,
 how busy the machine was, and the interpreter and numeric libraries that ran it.
 
-Read once, before the timed part (nothing here is on a control path).
+Read once, before the timed part (nothing here is on a control path). :func:`cpu_times` is read again after
+it: on a virtual machine, :func:`host_steal` then says how much of the CPUs' time the hypervisor gave to other
+guests *during* the run — time in which the code measured stood still, whatever it was.
 """
 
 from __future__ import annotations
@@ -58,6 +60,59 @@ def machine_info() -> dict[str, Any]:
             "platform": platform.platform(), "python": platform.python_version(),
             "libraries": {name: _version(name) for name in _LIBRARIES},
             "measured_at": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")}
+
+
+def cpu_times() -> tuple[int, ...] | None:
+    """The machine's CPU time counters since boot, all CPUs together [clock ticks].
+
+    Returns
+    -------
+    tuple of 8 int or None
+        ``user, nice, system, idle, iowait, irq, softirq, steal``: the first line of ``/proc/stat``
+        (Linux); None where there is no such file or it reads otherwise.
+    """
+    try:
+        with open("/proc/stat", encoding="ascii") as handle:
+            fields = handle.readline().split()
+    except (OSError, ValueError):
+        return None
+    if len(fields) < 9 or fields[0] != "cpu":
+        return None
+    try:
+        return tuple(int(value) for value in fields[1:9])
+    except ValueError:
+        return None
+
+
+def host_steal(before: tuple[int, ...] | None, after: tuple[int, ...] | None) -> dict[str, float] | None:
+    """The CPU time the hypervisor gave to other guests between two :func:`cpu_times` readings.
+
+    Parameters
+    ----------
+    before, after : tuple of int or None
+        Two readings of :func:`cpu_times`, in that order.
+
+    Returns
+    -------
+    dict or None
+        ``steal_s`` (seconds of CPU time, all CPUs together) and ``steal_percent`` (of all the CPUs' time in
+        the interval); None if either reading is missing or no time passed. 0 on dedicated hardware.
+    """
+    if before is None or after is None:
+        return None
+    deltas = [new - old for old, new in zip(before, after, strict=True)]
+    total = sum(deltas)
+    if total <= 0:
+        return None
+    ticks_per_s = os.sysconf("SC_CLK_TCK")
+    return {"steal_s": round(deltas[7] / ticks_per_s, 2), "steal_percent": round(100.0 * deltas[7] / total, 2)}
+
+
+def describe_steal(steal: dict[str, float] | None) -> str:
+    """``host steal ...`` of :func:`host_steal` for a text report (``n/a`` when it could not be read)."""
+    if steal is None:
+        return "host steal n/a"
+    return f"host steal {steal['steal_percent']:.2f} % ({steal['steal_s']:.2f} s of CPU time)"
 
 
 def describe(info: dict[str, Any]) -> str:

@@ -14,7 +14,9 @@ The demo is the hardware-in-the-loop bench on one machine:
    ten seconds when the output is not a terminal);
 4. both get SIGTERM (the daemon first: it commands zero thrust last); the report — plots and
    ``summary.json`` from the plant's truth, the commands it received, the daemon's black-box
-   recording and its loop timing — is written to ``<run>/report``.
+   recording and its loop timing, and the share of the CPUs the hypervisor took meanwhile (``host_steal``:
+   0 on dedicated hardware; on a virtual machine, time in which both processes stood still) — is written
+   to ``<run>/report``.
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from dpcontrol.platform_info import cpu_times, describe_steal, host_steal
 from interfaces.zenoh.loopback import free_tcp_port
 
 DEMO_SENSORS = [
@@ -227,6 +230,7 @@ def run_demo(scenario_path: Path, run_dir: Path | None = None, *, duration_s: fl
                          str(run_dir / "dpcontrol-stats.json")], run_dir / "dpcontrol.log", daemon_notify)
         if not daemon_notify.wait_ready(READY_TIMEOUT_S, daemon):
             raise DemoError(f"dpcontrol did not become ready (see {run_dir / 'dpcontrol.log'})")
+        ticks = cpu_times()  # the hypervisor's share of the CPUs over the daemon's loop (host_steal)
         say(f"dpcontrol ready; running the {duration:g} s scenario (live view: dpcontrol monitor --vessel demo "
             f"--connect {wiring['zenoh']})")
         remaining = duration - (time.monotonic() - plant_start)
@@ -243,10 +247,12 @@ def run_demo(scenario_path: Path, run_dir: Path | None = None, *, duration_s: fl
                 time.sleep(min(10.0, max(0.0, end - time.monotonic())))
                 say(f"t = {time.monotonic() - plant_start:5.0f} s of {duration:g} s")
         daemon_code = _stop(daemon)  # first: its last command is zero thrust, which the plant still receives
+        steal = host_steal(ticks, cpu_times())
         time.sleep(0.5)  # the command's way over Zenoh to the emulator (published before the daemon exits)
         plant_code = _stop(emulator)
-        say(f"stopped: dpcontrol exit {daemon_code}, sim-plant exit {plant_code}")
-        report_dir = write_report(run_dir, wiring, daemon_code=daemon_code, plant_code=plant_code)
+        say(f"stopped: dpcontrol exit {daemon_code}, sim-plant exit {plant_code}; during the run: "
+            f"{describe_steal(steal)}")
+        report_dir = write_report(run_dir, wiring, daemon_code=daemon_code, plant_code=plant_code, host_steal=steal)
         return report_dir
     finally:
         for process in (daemon, emulator):
@@ -278,8 +284,9 @@ def _read_csv(path: Path) -> dict[str, np.ndarray]:
 
 
 def write_report(run_dir: Path, wiring: dict[str, Any], *, daemon_code: int | None,
-                 plant_code: int | None) -> Path:
-    """Plots and ``summary.json`` of a demo run (see the module docstring)."""
+                 plant_code: int | None, host_steal: dict[str, float] | None = None) -> Path:
+    """Plots and ``summary.json`` of a demo run (see the module docstring); ``host_steal`` is
+    :func:`~dpcontrol.platform_info.host_steal` over the daemon's run (None: not measured)."""
     from dpcontrol.logtools import read_records  # noqa: PLC0415
 
     report = run_dir / "report"
@@ -287,7 +294,8 @@ def write_report(run_dir: Path, wiring: dict[str, Any], *, daemon_code: int | No
     truth = _read_csv(run_dir / "plant" / "truth.csv")
     commands = _read_csv(run_dir / "plant" / "commands.csv")
     scenario = yaml.safe_load((run_dir / "scenario.yaml").read_text(encoding="utf-8"))
-    summary: dict[str, Any] = {"run_dir": str(run_dir), "dpcontrol_exit": daemon_code, "sim_plant_exit": plant_code}
+    summary: dict[str, Any] = {"run_dir": str(run_dir), "dpcontrol_exit": daemon_code, "sim_plant_exit": plant_code,
+                               "host_steal": host_steal}
     stats_file = run_dir / "dpcontrol-stats.json"
     if stats_file.exists():
         summary["dpcontrol_loop"] = json.loads(stats_file.read_text(encoding="utf-8"))

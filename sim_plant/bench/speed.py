@@ -17,7 +17,7 @@ import itertools
 import time
 from typing import Any
 
-from dpcontrol.platform_info import describe, machine_info
+from dpcontrol.platform_info import cpu_times, describe, describe_steal, host_steal, machine_info
 from sim_plant.bench.run import build_simulation
 from sim_plant.scenario import builtin_scenario_path, load_scenario
 
@@ -32,9 +32,11 @@ def _timed_run(name: str, overrides: dict[str, Any], duration_s: float) -> dict[
     def progress(t: float, total: float) -> None:
         marks.append((t, time.perf_counter()))
 
+    ticks = cpu_times()
     start = time.perf_counter()
     result = simulation.run(progress=progress, duration_s=duration_s)
     wall = time.perf_counter() - start
+    steal = host_steal(ticks, cpu_times())
     # cost per simulated second in ten windows of the run
     windows = []
     if len(marks) > 10:
@@ -46,7 +48,8 @@ def _timed_run(name: str, overrides: dict[str, Any], duration_s: float) -> dict[
             "speed_x_realtime": round(duration_s / wall, 1),
             "estimator": simulation.config.estimator.kind, "control": simulation.config.control.kind,
             "ms_per_simulated_s_by_tenth": windows,
-            "last_to_first_tenth": round(windows[-1] / windows[0], 3) if len(windows) >= 2 and windows[0] else None}
+            "last_to_first_tenth": round(windows[-1] / windows[0], 3) if len(windows) >= 2 and windows[0] else None,
+            "host_steal": steal}
 
 
 def run_speed_bench(tanker_duration_s: float = 43200.0, cs2_duration_s: float = 300.0) -> dict[str, Any]:
@@ -63,6 +66,6 @@ def format_speed(result: dict[str, Any]) -> str:
     for run in result["runs"]:
         lines.append(f"  {run['scenario']:<16} {run['simulated_s']:>8.0f} s simulated in {run['wall_s']:>7.2f} s: "
                      f"{run['speed_x_realtime']:>7.1f}x real time ({run['estimator']}, {run['control']}); "
-                     f"cost last/first tenth {run['last_to_first_tenth']}")
+                     f"cost last/first tenth {run['last_to_first_tenth']}; {describe_steal(run['host_steal'])}")
     lines.append("  " + describe(result["machine"]))
     return "\n".join(lines)

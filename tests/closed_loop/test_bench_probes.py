@@ -1,6 +1,6 @@
 """The two timing probes of ``benchmarks/`` in miniature: the lockstep stage breakdown accounts for the step
-it splits, and the cold-cache probe times the steps it says it times. (The numbers are the benchmarks'
-business; these keep their machinery honest on every commit.)"""
+it splits, and the cold-cache probe times the steps and the kernel calls it says it times. (The numbers are
+the benchmarks' business; these keep their machinery honest on every commit.)"""
 
 from __future__ import annotations
 
@@ -48,3 +48,13 @@ def test_cold_cache_probe_times_each_step_after_the_wait() -> None:
     durations = probe._run("back-to-back", 12)
     assert durations.shape == (12,)
     assert (durations > 0.0).all() and (durations < 1e6).all()  # µs: a step, not a whole run
+
+
+def test_cold_cache_probe_times_the_kernel_per_gap() -> None:
+    probe = _load("bench_cold_cache")
+    kernel = probe._kernel(3)
+    assert list(kernel) == ["0 ms", "2 ms", "10 ms", "100 ms"]
+    for row in kernel.values():
+        # CPU time of one call [µs]: not nothing, and far less than the 100 ms waited before it
+        assert 0.0 < row["syscall_us"] < 50_000.0
+        assert 0.0 < row["udp_send_us"] < 50_000.0

@@ -61,8 +61,9 @@ def test_publish_subscribe_every_topic(pair: tuple[ZenohNode, ZenohNode], topic:
     assert publisher.key == listener.keys.topic(topic)
     assert publisher.wait_matched(TIMEOUT_S)
     sent = [_sample_payload(topic, publisher.next_seq()) for _ in range(3)]
-    assert all(publisher.put(payload) for payload in sent)
-    assert subscriber.sink.wait_count(3, TIMEOUT_S)
+    for count, payload in enumerate(sent, start=1):  # one at a time (see test_both_directions_and_latest_slot)
+        assert publisher.put(payload)
+        assert subscriber.sink.wait_count(count, TIMEOUT_S)
     received = subscriber.sink.drain()
     assert [item.key for item in received] == [publisher.key] * 3
     assert [item.message.seq if not isinstance(item.message, dict) else item.message["seq"]
@@ -81,10 +82,14 @@ def test_both_directions_and_latest_slot(pair: tuple[ZenohNode, ZenohNode]) -> N
     feedback = listener.subscribe("feedback")
     command_pub, feedback_pub = listener.publisher("command"), connector.publisher("feedback")
     assert command_pub.wait_matched(TIMEOUT_S) and feedback_pub.wait_matched(TIMEOUT_S)
+    # one message each way at a time, as the daemon and the drives send them (10 Hz, never in a burst):
+    # command and feedback are CongestionControl.DROP topics, which zenoh may thin out in a burst on a busy
+    # machine (seen once in a full suite run: 4 of 5 back-to-back commands arrived) — by design, for a topic
+    # where only the newest matters
     for seq in range(5):
         command_pub.put(_sample_payload("command", seq))
         feedback_pub.put(_sample_payload("feedback", seq))
-    assert commands.sink.wait_count(5, TIMEOUT_S) and feedback.sink.wait_count(5, TIMEOUT_S)
+        assert commands.sink.wait_count(seq + 1, TIMEOUT_S) and feedback.sink.wait_count(seq + 1, TIMEOUT_S)
     assert isinstance(commands.sink, LatestSlot)
     newest = commands.sink.take()
     assert newest is not None and newest.message.seq == 4

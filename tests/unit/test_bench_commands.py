@@ -7,8 +7,10 @@ import json
 import os
 import subprocess
 import sys
+import time
 
-from dpcontrol.platform_info import describe, machine_info
+from dpcontrol.bench import format_bench
+from dpcontrol.platform_info import cpu_times, describe, describe_steal, host_steal, machine_info
 
 ENV = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
 
@@ -34,12 +36,44 @@ def test_machine_info_describes_this_machine() -> None:
     assert line.startswith("machine: ") and info["cpu"] in line and info["python"] in line
 
 
+def _check_steal(steal: dict[str, float] | None) -> None:
+    # this suite runs on Linux: /proc/stat is there, and the run took some of the CPUs' time
+    assert steal is not None
+    assert steal["steal_s"] >= 0.0 and 0.0 <= steal["steal_percent"] <= 100.0
+
+
+def test_cpu_times_reads_the_eight_counters_and_they_advance() -> None:
+    before = cpu_times()
+    assert before is not None and len(before) == 8 and all(v >= 0 for v in before)
+    end = time.monotonic() + 0.05
+    while time.monotonic() < end:  # 50 ms of CPU time: at least a few clock ticks
+        pass
+    after = cpu_times()
+    assert after is not None and sum(after) > sum(before)
+    _check_steal(host_steal(before, after))
+
+
+def test_host_steal_is_the_steal_share_of_all_the_cpu_time_in_between() -> None:
+    ticks = os.sysconf("SC_CLK_TCK")
+    before = (1000, 0, 500, 8000, 10, 0, 5, 40)
+    # 150 ticks user, 100 idle, 50 system, 50 steal: 50 of 350
+    after = (1150, 0, 550, 8100, 10, 0, 5, 90)
+    steal = host_steal(before, after)
+    assert steal == {"steal_s": round(50 / ticks, 2), "steal_percent": round(100 * 50 / 350, 2)}
+    assert "host steal 14.29 %" in describe_steal(steal)
+    assert host_steal(before, before) is None  # no time passed: no share
+    assert host_steal(None, after) is None and host_steal(before, None) is None
+    assert describe_steal(None) == "host steal n/a"
+
+
 def test_dpcontrol_bench_json_reports_stages_cycle_and_machine() -> None:
     done = _run("dpcontrol.cli", "bench", "--iterations", "60", "--json")
     assert done.returncode == 0, done.stderr
     result = json.loads(done.stdout)
     assert result["iterations"] == 60
     _check_machine(result["machine"])
+    _check_steal(result["host_steal"])
+    assert "during the run: host steal " in format_bench(result)
     assert set(result["stages"]) == {"decode", "hub", "estimator", "control", "allocation", "encode_publish"}
     for stats in [*result["stages"].values(), result["cycle"]]:
         assert 0.0 < stats["median_us"] <= stats["p99_us"] <= stats["max_us"]
@@ -68,6 +102,8 @@ def test_sim_plant_bench_json_and_text_report_both_runs() -> None:
         rounding = run["speed_x_realtime"] * 0.0005 / run["wall_s"] + 0.05
         assert abs(run["speed_x_realtime"] - run["simulated_s"] / run["wall_s"]) <= rounding * 1.01
         assert len(run["ms_per_simulated_s_by_tenth"]) == 10
+        _check_steal(run["host_steal"])
     text = _run("sim_plant.cli", "bench", "--tanker-duration", "10", "--cs2-duration", "5")
     assert text.returncode == 0, text.stderr
     assert "tanker-seed003" in text.stdout and "cs2-seed000" in text.stdout and "machine: " in text.stdout
+    assert text.stdout.count("host steal ") == 2  # one per run
