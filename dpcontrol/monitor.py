@@ -411,6 +411,10 @@ def _footer(state: MonitorState) -> Text:
                     f"duration {_fmt(_get(cycle, 'duration_us'), '.0f')} µs  "
                     f"p99 {_fmt(_get(cycle, 'p99_us'), '.0f')} µs  missed ")
         line.append(str(missed) if isinstance(missed, int) else _DASH, style="red" if missed else "green")
+        steal = _get(cycle, "host_steal_percent")
+        if isinstance(steal, (int, float)):  # absent from older daemons, null where it cannot be read
+            # yellow from 1 %: on the HIL bench the loop's latency tail passed 2 ms from about that much steal
+            line.append(f"  host steal {steal:.1f} %", style="yellow" if steal >= 1.0 else "")
     else:
         line.append(_NO_DATA, style="dim")
     line.append("\nages: ")

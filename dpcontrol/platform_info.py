@@ -11,6 +11,8 @@ from __future__ import annotations
 import datetime
 import os
 import platform
+from collections import deque
+from collections.abc import Callable
 from importlib import metadata
 from pathlib import Path
 from typing import Any
@@ -106,6 +108,44 @@ def host_steal(before: tuple[int, ...] | None, after: tuple[int, ...] | None) ->
         return None
     ticks_per_s = os.sysconf("SC_CLK_TCK")
     return {"steal_s": round(deltas[7] / ticks_per_s, 2), "steal_percent": round(100.0 * deltas[7] / total, 2)}
+
+
+class HostStealWindow:
+    """The hypervisor's share of the CPUs over the last ``window_s`` of a running service [%].
+
+    Parameters
+    ----------
+    window_s : float
+        Length of the window [s] (> 0).
+    read : callable
+        :func:`cpu_times` (replaceable for tests).
+
+    Notes
+    -----
+    :meth:`update` reads ``/proc/stat`` (one small file read): call it about once a second, off any
+    deadline. The readings older than the window are dropped, so the memory is bounded by the call rate.
+    """
+
+    def __init__(self, window_s: float = 10.0, read: Callable[[], tuple[int, ...] | None] = cpu_times) -> None:
+        if not window_s > 0.0:
+            raise ValueError(f"window_s must be > 0, got {window_s!r}")
+        self.window_s = window_s
+        self._read = read
+        self._readings: deque[tuple[float, tuple[int, ...]]] = deque()
+
+    def update(self, t_s: float) -> float | None:
+        """Read the counters at ``t_s`` [s, monotonic]; the steal share since the oldest reading of the window
+        [%], None before there are two readings (or where the counters cannot be read)."""
+        ticks = self._read()
+        if ticks is None:
+            return None
+        readings = self._readings
+        while len(readings) > 1 and t_s - readings[1][0] >= self.window_s:
+            readings.popleft()  # the oldest kept is the last one at least window_s old
+        oldest = readings[0][1] if readings else None
+        readings.append((t_s, ticks))
+        steal = host_steal(oldest, ticks)
+        return None if steal is None else steal["steal_percent"]
 
 
 def describe_steal(steal: dict[str, float] | None) -> str:

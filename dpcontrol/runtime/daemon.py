@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from dpcontrol.platform_info import HostStealWindow
 from dpcontrol.runtime.alarms import AlarmRegistry, Severity
 from dpcontrol.runtime.config import DaemonConfig, TransportConfig, config_summary
 from dpcontrol.runtime.inputs import SensorRouter, link_source
@@ -331,6 +332,8 @@ class Daemon:
         self._last_state_save = -math.inf
         self._last_stats_t = -math.inf
         self._cycle_summary: dict[str, Any] = {}
+        self._host_steal = HostStealWindow(10.0)  # the hypervisor's share of the CPUs, for the status
+        self._host_steal_percent: float | None = None
         self.realtime_detail = "normal scheduler"
         self.state_detail = ""
         self._setpoints_rejected = 0
@@ -618,10 +621,11 @@ class Daemon:
     def _status_payload(self, t_s: float, seq: int) -> bytes:
         if t_s - self._last_stats_t >= 1.0:
             self._cycle_summary = self.stats.summary()
+            self._host_steal_percent = self._host_steal.update(t_s)
             self._last_stats_t = t_s
         durations = self._cycle_summary.get("cycle_duration_us", {})
         cycle = schemas.CycleTiming(self.config.sample_time_s, durations.get("median"), durations.get("p99"),
-                                    self.stats.missed_deadlines)
+                                    self.stats.missed_deadlines, self._host_steal_percent)
         return status_payload(self.controller, self.alarms, t_s, seq, cycle)
 
     def _record(self, t_s: float, out: StepOutput, seq: int) -> None:

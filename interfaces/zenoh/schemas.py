@@ -69,7 +69,7 @@ Schemas (version 1; ``?`` = may be ``null``)
     mode: str
     sensors: [{name, kind, state (ok|stale|frozen|rejected|invalid|disconnected), age_s?, weight?, detail}]
     alarms: [{code, severity (info|warning|alarm|critical), text, since_t_s?, active}]
-    cycle?: {period_s, duration_us?, p99_us?, missed_deadlines}
+    cycle?: {period_s, duration_us?, p99_us?, missed_deadlines, host_steal_percent?}
     thrusters: [{name, available, detail}]
 
 ``dpcontrol.setpoint/1`` (operator → daemon, ``dp/<vessel>/setpoint``) — see :func:`parse_setpoint`;
@@ -486,7 +486,9 @@ STATUS = Schema("dpcontrol.status", 1, Record({
                             "text": Text(max_len=256), "since_t_s": Number(0.0, _MAX_TIME_S, nullable=True),
                             "active": Flag()}), max_len=256),
     "cycle": Record({"period_s": Number(0.0, 3600.0), "duration_us": Number(0.0, 1e12, nullable=True),
-                     "p99_us": Number(0.0, 1e12, nullable=True), "missed_deadlines": Integer()}, nullable=True),
+                     "p99_us": Number(0.0, 1e12, nullable=True), "missed_deadlines": Integer(),
+                     "host_steal_percent": Number(0.0, 100.0, nullable=True)},
+                    optional=("host_steal_percent",), nullable=True),
     "thrusters": Array(Record({"name": _NAME, "available": Flag(), "detail": Text(max_len=256)}), unique="name"),
 }))
 
@@ -1109,12 +1111,14 @@ class Alarm:
 
 @dataclass(frozen=True, slots=True)
 class CycleTiming:
-    """Control-loop timing: period [s], last duration and p99 [µs], missed deadlines (count)."""
+    """Control-loop timing: period [s], last duration and p99 [µs], missed deadlines (count), and the share of
+    the CPUs the hypervisor gave to other guests lately [%] (0 on dedicated hardware; None: not known)."""
 
     period_s: float
     duration_us: float | None
     p99_us: float | None
     missed_deadlines: int
+    host_steal_percent: float | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -1138,7 +1142,8 @@ def status_payload(*, t_s: float, seq: int, mode: str, sensors: Sequence[SensorH
                     "active": bool(a.active)} for a in alarms],
         "cycle": None if cycle is None else {
             "period_s": float(cycle.period_s), "duration_us": _num(cycle.duration_us),
-            "p99_us": _num(cycle.p99_us), "missed_deadlines": int(cycle.missed_deadlines)},
+            "p99_us": _num(cycle.p99_us), "missed_deadlines": int(cycle.missed_deadlines),
+            "host_steal_percent": _num(cycle.host_steal_percent)},
         "thrusters": [{"name": t.name, "available": bool(t.available), "detail": t.detail} for t in thrusters],
     })
 

@@ -68,6 +68,7 @@ def hil_run(tmp_path_factory: pytest.TempPathFactory) -> dict:
                          wiring["vessel_id"])
         lock = threading.Lock()
         window: dict[str, list[float]] = collections.defaultdict(list)
+        latest: dict[str, object] = {}
         try:
             assert node.wait_for_peers(2, 20.0)
 
@@ -77,6 +78,7 @@ def hil_run(tmp_path_factory: pytest.TempPathFactory) -> dict:
                         with lock:
                             counts[topic] += 1
                             window[topic].append(time.monotonic())
+                            latest[topic] = getattr(item, "message", None)
                 return Sink()
 
             subscribers: dict = {}
@@ -109,7 +111,7 @@ def hil_run(tmp_path_factory: pytest.TempPathFactory) -> dict:
             rates[topic] = (len(steady) - 1) / (steady[-1] - steady[0])
     return {"run_dir": run_dir, "summary": json.loads((report / "summary.json").read_text()),
             "counts": dict(counts), "rates": rates, "rejected": rejected,
-            "last_rejection": last_rejection, "alive": seen_alive, "config": config_reply,
+            "last_rejection": last_rejection, "alive": seen_alive, "config": config_reply, "latest": latest,
             "daemon_log": (run_dir / "dpcontrol.log").read_text(), "wiring": wiring}
 
 
@@ -137,6 +139,9 @@ def test_every_key_is_published_at_the_configured_rate(hil_run: dict) -> None:
         assert topic in rates, (topic, hil_run["counts"])
         assert 9.0 <= rates[topic] <= 11.0, (topic, rates[topic])
     assert hil_run["alive"] == {"controller", "plant"}
+    # the status's cycle timing carries the host's share of the CPUs over the last 10 s (Linux: /proc/stat)
+    steal = hil_run["latest"]["status"]["cycle"]["host_steal_percent"]
+    assert isinstance(steal, float) and 0.0 <= steal <= 100.0
     assert hil_run["config"]["config"]["vessel_id"] == hil_run["wiring"]["vessel_id"]
 
 

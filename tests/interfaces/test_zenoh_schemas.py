@@ -132,9 +132,22 @@ def test_status_round_trip() -> None:
     assert msg["sensors"][1]["age_s"] is None
     assert msg["alarms"][0]["active"] is True
     assert msg["cycle"]["missed_deadlines"] == 0
+    assert msg["cycle"]["host_steal_percent"] is None  # not known: null
     bad = json.loads(payload)
     bad["sensors"][0]["state"] = "great"
     assert _reason(sc.parse_message("status", json.dumps(bad).encode())) == "bad_value"
+
+
+def test_status_cycle_host_steal_is_optional_and_a_percentage() -> None:
+    payload = sc.status_payload(t_s=5.0, seq=3, mode="auto_position", cycle=sc.CycleTiming(0.1, 140.0, 180.0, 0, 1.25))
+    assert sc.parse_message("status", payload)["cycle"]["host_steal_percent"] == 1.25
+    older = json.loads(payload)
+    del older["cycle"]["host_steal_percent"]  # a daemon from before the field: still valid
+    assert sc.parse_message("status", json.dumps(older).encode())["cycle"]["host_steal_percent"] is None
+    for wrong, reason in ((-0.5, "out_of_range"), (100.5, "out_of_range"), ("1 %", "wrong_type")):
+        bad = json.loads(payload)
+        bad["cycle"]["host_steal_percent"] = wrong
+        assert _reason(sc.parse_message("status", json.dumps(bad).encode())) == reason
 
 
 def test_config_payload_round_trip_and_refusals() -> None:

@@ -10,7 +10,7 @@ import sys
 import time
 
 from dpcontrol.bench import format_bench
-from dpcontrol.platform_info import cpu_times, describe, describe_steal, host_steal, machine_info
+from dpcontrol.platform_info import HostStealWindow, cpu_times, describe, describe_steal, host_steal, machine_info
 
 ENV = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
 
@@ -64,6 +64,37 @@ def test_host_steal_is_the_steal_share_of_all_the_cpu_time_in_between() -> None:
     assert host_steal(before, before) is None  # no time passed: no share
     assert host_steal(None, after) is None and host_steal(before, None) is None
     assert describe_steal(None) == "host steal n/a"
+
+
+def test_host_steal_window_reports_the_share_over_the_last_window() -> None:
+    # one tick of steal and nine of user time per second, on synthetic counters
+    counters = [(0, 0, 0, 0, 0, 0, 0, 0)]
+
+    def read() -> tuple[int, ...] | None:
+        return counters[-1]
+
+    window = HostStealWindow(3.0, read=read)
+    assert window.update(0.0) is None  # one reading: no interval yet
+    for second in range(1, 6):
+        user, steal = 9 * second, second
+        if second >= 4:
+            steal += 9 * (second - 3)  # from 3 s on, the host takes 9 ticks a second more
+        counters.append((user, 0, 0, 0, 0, 0, 0, steal))
+        share = window.update(float(second))
+        if second <= 3:
+            assert share == 10.0  # 1 of 10 ticks since t = 0
+        else:  # over the last 3 s only (t = second - 3 .. second)
+            old_user, old_steal = 9 * (second - 3), (second - 3) + 9 * max(second - 6, 0)
+            assert share == round(100 * (steal - old_steal) / ((user - old_user) + (steal - old_steal)), 2)
+    assert len(window._readings) <= 4  # bounded by the window, not by the run
+    counters.append(None)  # type: ignore[arg-type]
+    assert window.update(6.0) is None  # unreadable: unknown, not an error
+    try:
+        HostStealWindow(0.0)
+    except ValueError as error:
+        assert "window_s" in str(error)
+    else:
+        raise AssertionError("a zero window was accepted")
 
 
 def test_dpcontrol_bench_json_reports_stages_cycle_and_machine() -> None:

@@ -46,7 +46,7 @@ def _payloads(seq: int = 1) -> dict[str, bytes]:
                      sc.SensorHealth("gyro2", "gyro", "frozen", 3.5, 0.0, "[bold]no change[/bold] for 3 s")],
             alarms=[sc.Alarm("GYRO2_FROZEN", "alarm", "gyro2 frozen", 97.0, True),
                     sc.Alarm("GNSS1_STALE", "warning", "cleared", 50.0, False)],
-            cycle=sc.CycleTiming(0.1, 142.0, 187.0, 3),
+            cycle=sc.CycleTiming(0.1, 142.0, 187.0, 3, 1.5),
             thrusters=[sc.ThrusterAvailability("bow", True), sc.ThrusterAvailability("stern", False, "trip")]),
         "command": sc.command_payload(t_s=t, seq=seq, mode="auto_position", names=["bow", "stern"],
                                       thrust_n=[12e3, -8e3], azimuth_rad=[math.pi / 2, 0.0]),
@@ -87,7 +87,7 @@ def test_render_shows_every_part() -> None:
     assert "north [m]" in text and "X [kN]" in text    # unit brackets survive
     assert "bow" in text and "stern" in text and "no (trip)" in text
     assert "GYRO2_FROZEN" in text and "(1 active)" in text
-    assert "p99 187 µs" in text and "missed 3" in text
+    assert "p99 187 µs" in text and "missed 3" in text and "host steal 1.5 %" in text
 
 
 def test_render_with_no_data_at_all() -> None:
