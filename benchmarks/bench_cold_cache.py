@@ -22,9 +22,10 @@ The same holds for the kernel, which the daemon enters after its step to publish
 ``kernel`` part times, in CPU time of the calling thread, a trivial system call (``getppid``) and the send of
 one 645-byte datagram (the size of a thruster command) to a socket of this process on 127.0.0.1 — no reader
 is woken, so it is the send path alone — back to back and after busy-waiting 2, 10 and 100 ms in Python.
-On the 2026-12-02 development VM (a Firecracker micro-VM): the system call 1.5 µs back to back, 20 µs after
-10 ms; the send 7 µs back to back, ~100 µs after 10 ms. That is most of the daemon's "command" phase
-(``phases_us.command`` in a demo's summary: 110–220 µs median), whatever the daemon does.
+On the 2026-12-02 development VM (a Firecracker micro-VM; two runs of this script, 13:00 and 13:20 UTC): the
+system call 1.4–1.5 µs back to back, 15–17 µs after 10 ms; the send 7 µs back to back, 87–97 µs after 10 ms.
+The daemon's "command" phase (``phases_us.command`` in a demo's summary: 110–220 µs median) pays the same
+kind of cold path in Zenoh's ``put``, whatever the daemon does.
 
 Usage::
 

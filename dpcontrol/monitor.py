@@ -413,7 +413,8 @@ def _footer(state: MonitorState) -> Text:
         line.append(str(missed) if isinstance(missed, int) else _DASH, style="red" if missed else "green")
         steal = _get(cycle, "host_steal_percent")
         if isinstance(steal, (int, float)):  # absent from older daemons, null where it cannot be read
-            # yellow from 1 %: on the HIL bench the loop's latency tail passed 2 ms from about that much steal
+            # yellow from 1 %: in the HIL demos of 2026-12-02 the latency p99 passed 2 ms in every run with 0.5 %
+            # of steal or more (README, Benchmarks); 1 % marks a host that is clearly in the way
             line.append(f"  host steal {steal:.1f} %", style="yellow" if steal >= 1.0 else "")
     else:
         line.append(_NO_DATA, style="dim")
