@@ -260,13 +260,19 @@ def _add_demo(commands: Any) -> None:
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    from sim_plant.bench.demo import DemoError, run_demo  # noqa: PLC0415
+    import json  # noqa: PLC0415
+
+    from sim_plant.bench.demo import DemoError, describe_summary, run_demo  # noqa: PLC0415
 
     try:
         report = run_demo(_scenario_path(args.scenario), args.out, duration_s=args.duration, live=args.live)
     except DemoError as error:
         print(f"sim-plant demo: {error}", file=sys.stderr)
         return EXIT_FAILURE
+    summary_file = report / "summary.json"
+    if summary_file.exists():
+        for line in describe_summary(json.loads(summary_file.read_text(encoding="utf-8"))):
+            print(f"sim-plant demo: {line}")
     print(f"sim-plant demo: report in {report}")
     return EXIT_OK
 
