@@ -38,6 +38,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
     except ConfigError as error:
         print(f"dpcontrol: invalid configuration: {error}", file=sys.stderr)
         return 2
+    if args.stats_out:  # checked before the run: the stats are written when it ends, maybe hours later
+        folder = Path(args.stats_out).resolve().parent
+        if not folder.is_dir() or not os.access(folder, os.W_OK):
+            print(f"dpcontrol: --stats-out {args.stats_out}: the folder {folder} does not exist or is not writable",
+                  file=sys.stderr)
+            return 2
     daemon = Daemon(config)
     code = daemon.run(duration_s=args.duration)
     if args.stats_out:
@@ -50,7 +56,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
         stats["deadline_spin"] = None if spinner is None else {
             "window_ms": config.realtime.spin_s * 1e3, "slice_iterations": spinner.iterations,
             "spun_s": round(spinner.spun_s, 3)}
-        Path(args.stats_out).write_text(json.dumps(stats, indent=2) + "\n", encoding="utf-8")
+        try:
+            Path(args.stats_out).write_text(json.dumps(stats, indent=2) + "\n", encoding="utf-8")
+        except OSError as error:  # (the folder went away, or the disk is full): say so; the run itself is over
+            print(f"dpcontrol: --stats-out {args.stats_out}: not written: {error}", file=sys.stderr)
+            return code or 1
     return code
 
 
@@ -123,11 +133,16 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 
 def _cmd_replay(args: argparse.Namespace) -> int:
+    from dpcontrol.outputs import unwritable_folder  # noqa: PLC0415
     from dpcontrol.replay import replay  # noqa: PLC0415
 
     _configure_logging(False)
+    out_dir = Path(args.out) if args.out else None
+    unwritable = None if out_dir is None else unwritable_folder(out_dir)  # before replaying a day's recording
+    if unwritable is not None:
+        print(f"dpcontrol replay: {unwritable}", file=sys.stderr)
+        return 2
     try:
-        out_dir = Path(args.out) if args.out else None
         report = replay(Path(args.log), Path(args.config), out_dir, plots=not args.no_plots)
     except ConfigError as error:
         print(f"dpcontrol replay: invalid configuration: {error}", file=sys.stderr)

@@ -87,6 +87,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     import yaml  # noqa: PLC0415
 
     from dpcontrol.models.schema import ConfigError  # noqa: PLC0415
+    from dpcontrol.outputs import unwritable_folder  # noqa: PLC0415
     from sim_plant.bench.run import build_simulation, run_and_report  # noqa: PLC0415
     from sim_plant.scenario import load_scenario  # noqa: PLC0415
 
@@ -112,6 +113,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
     except (ConfigError, ValueError, KeyError, OSError, yaml.YAMLError) as error:
         message = error.args[0] if isinstance(error, KeyError) and error.args else error
         print(f"sim-plant run: {message}", file=sys.stderr)
+        return EXIT_USAGE
+    unwritable = unwritable_folder(args.out)
+    if unwritable is not None:
+        print(f"sim-plant run: {unwritable}", file=sys.stderr)
         return EXIT_USAGE
     outputs = run_and_report(simulation, args.out, plots=not args.no_plots, progress=args.progress,
                              duration_s=args.duration)
@@ -262,8 +267,13 @@ def _add_demo(commands: Any) -> None:
 def _cmd_demo(args: argparse.Namespace) -> int:
     import json  # noqa: PLC0415
 
+    from dpcontrol.outputs import unwritable_folder  # noqa: PLC0415
     from sim_plant.bench.demo import DemoError, describe_summary, run_demo  # noqa: PLC0415
 
+    unwritable = unwritable_folder(args.out if args.out is not None else Path("runs"))  # (run_demo's default)
+    if unwritable is not None:
+        print(f"sim-plant demo: {unwritable}", file=sys.stderr)
+        return EXIT_USAGE
     try:
         report = run_demo(_scenario_path(args.scenario), args.out, duration_s=args.duration, live=args.live)
     except DemoError as error:

@@ -45,6 +45,19 @@ def test_run_refuses_a_missing_scenario_and_a_bad_override(tmp_path: Path,
     assert "estimator.kind" in capsys.readouterr().err
 
 
+def test_run_and_demo_refuse_an_output_folder_they_cannot_write_before_starting(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    blocker = tmp_path / "a-file"
+    blocker.write_text("not a folder\n")
+    for command in (["run", "cs2-seed000"], ["demo", "--duration", "5", "--no-live"]):
+        started = time.monotonic()
+        assert main([*command, "--out", str(blocker / "out")]) == 2
+        err = capsys.readouterr().err
+        assert f"cannot write into the output folder {blocker / 'out'}" in err, err
+        assert time.monotonic() - started < 10.0  # refused up front: no simulation, no processes
+    assert blocker.read_text() == "not a folder\n"
+
+
 def test_no_command_prints_help(capsys: pytest.CaptureFixture[str]) -> None:
     assert main([]) == 2
     assert "hil" in capsys.readouterr().err

@@ -11,6 +11,7 @@ import yaml
 from dpcontrol.cli import main
 from dpcontrol.models.schema import ConfigError
 from dpcontrol.runtime.config import RealtimeSettings, ReplicaSettings, load_config, parse_config
+from dpcontrol.runtime.daemon import LoopStats
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = sorted((ROOT / "deploy" / "config").glob("*.yaml"))
@@ -130,6 +131,54 @@ def test_check_config_cli_refuses_a_broken_file(tmp_path: Path, capsys: pytest.C
     assert main(["check-config", str(bad_yaml)]) == 2
     assert "valid YAML" in capsys.readouterr().err
     assert main(["check-config", str(tmp_path / "missing.yaml")]) == 2
+
+
+def test_daemon_refuses_a_stats_file_it_could_not_write_before_starting(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    path = tmp_path / "vessel.yaml"
+    path.write_text(yaml.safe_dump(copy.deepcopy(BASE)))
+    blocker = tmp_path / "a-file"
+    blocker.write_text("")
+    monkeypatch.setattr("dpcontrol.runtime.daemon.Daemon", _NoDaemon)
+    monkeypatch.setattr(_NoDaemon, "runs", 0)
+    assert main(["run", "--config", str(path), "--stats-out", str(blocker / "stats.json"), "--duration", "1"]) == 2
+    assert f"the folder {blocker} does not exist or is not writable" in capsys.readouterr().err
+    assert _NoDaemon.runs == 0
+
+
+def test_stats_that_cannot_be_written_at_the_end_are_an_error_not_a_traceback(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    path = tmp_path / "vessel.yaml"
+    path.write_text(yaml.safe_dump(copy.deepcopy(BASE)))
+    folder = tmp_path / "stats"
+    folder.mkdir()
+    monkeypatch.setattr("dpcontrol.runtime.daemon.Daemon", _NoDaemon)
+    monkeypatch.setattr(_NoDaemon, "runs", 0)
+    monkeypatch.setattr(_NoDaemon, "remove_during_run", folder)  # the folder goes away while the daemon runs
+    assert main(["run", "--config", str(path), "--stats-out", str(folder / "stats.json"), "--duration", "1"]) == 1
+    assert "stats.json: not written" in capsys.readouterr().err
+    assert _NoDaemon.runs == 1
+
+
+class _NoDaemon:
+    """Stands in for the daemon in the two tests of ``--stats-out`` above (its loop is not what they test)."""
+
+    runs = 0
+    remove_during_run: Path | None = None
+    resumed_from_state = False
+    state_detail = "missing"
+    realtime_detail = "normal scheduler"
+    replica = None
+    spinner = None
+
+    def __init__(self, config: object) -> None:
+        self.stats = LoopStats(0.1)
+
+    def run(self, duration_s: float | None = None) -> int:
+        type(self).runs += 1
+        if self.remove_during_run is not None:
+            self.remove_during_run.rmdir()
+        return 0
 
 
 def test_daemon_refuses_to_start_on_an_invalid_config(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
