@@ -39,10 +39,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
         print(f"dpcontrol: invalid configuration: {error}", file=sys.stderr)
         return 2
     if args.stats_out:  # checked before the run: the stats are written when it ends, maybe hours later
-        folder = Path(args.stats_out).resolve().parent
-        if not folder.is_dir() or not os.access(folder, os.W_OK):
-            print(f"dpcontrol: --stats-out {args.stats_out}: the folder {folder} does not exist or is not writable",
-                  file=sys.stderr)
+        from dpcontrol.outputs import unwritable_folder  # noqa: PLC0415
+
+        unwritable = unwritable_folder(Path(args.stats_out).resolve().parent)
+        if unwritable is not None:
+            print(f"dpcontrol: --stats-out {args.stats_out}: {unwritable}", file=sys.stderr)
             return 2
     daemon = Daemon(config)
     code = daemon.run(duration_s=args.duration)

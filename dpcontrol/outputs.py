@@ -2,7 +2,8 @@
 
 A 12 h lockstep run, a demo, or the replay of a day's recording must not end in a traceback, its results
 lost, because the folder named on its command line cannot be written: the commands check it first
-(``sim-plant run --out``, ``sim-plant demo --out``, ``dpcontrol replay --out``).
+(``sim-plant run --out``, ``sim-plant demo --out``, ``dpcontrol replay --out``, and the folder of
+``dpcontrol run --stats-out``).
 """
 
 from __future__ import annotations

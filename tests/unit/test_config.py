@@ -142,7 +142,7 @@ def test_daemon_refuses_a_stats_file_it_could_not_write_before_starting(
     monkeypatch.setattr("dpcontrol.runtime.daemon.Daemon", _NoDaemon)
     monkeypatch.setattr(_NoDaemon, "runs", 0)
     assert main(["run", "--config", str(path), "--stats-out", str(blocker / "stats.json"), "--duration", "1"]) == 2
-    assert f"the folder {blocker} does not exist or is not writable" in capsys.readouterr().err
+    assert f"stats.json: cannot write into the output folder {blocker}" in capsys.readouterr().err
     assert _NoDaemon.runs == 0
 
 
