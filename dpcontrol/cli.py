@@ -157,11 +157,20 @@ def _cmd_replay(args: argparse.Namespace) -> int:
 
 def _cmd_log_export(args: argparse.Namespace) -> int:
     from dpcontrol.logtools import export_csv  # noqa: PLC0415
+    from dpcontrol.outputs import unwritable_folder  # noqa: PLC0415
 
+    unwritable = unwritable_folder(Path(args.csv))
+    if unwritable is not None:
+        print(f"dpcontrol log export: {unwritable}", file=sys.stderr)
+        return 2
     try:
         paths = export_csv(args.log, args.csv)
     except (OSError, ValueError) as error:
         print(f"dpcontrol log export: {error}", file=sys.stderr)
+        return 1
+    if not paths:
+        print(f"dpcontrol log export: {args.log}: no records read — not a dpcontrol recording (MCAP), or empty; "
+              "nothing written", file=sys.stderr)
         return 1
     for path in paths:
         print(path)

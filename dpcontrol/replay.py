@@ -80,17 +80,21 @@ def replay(log: Path, config_path: Path, out_dir: Path | None = None, *, plots: 
     Raises
     ------
     ValueError
-        The recording has no ``cycle`` records (recorded by another version, or recording was off).
+        Nothing could be read from ``log`` (not an MCAP recording, or empty), or it has no ``cycle``
+        records (recorded by another version, or recording was off).
     """
     config = load_config(config_path)
-    recorded = read_config(log) or {}
+    # (damage is reported once, by the full pass below: this one reads up to the first config record)
+    recorded = read_config(log, on_issue=lambda _path, _message: None) or {}
     same_config = recorded.get("config_sha256") == config.config_hash
     raw: dict[int, tuple[str, float, dict[str, Any], bytes]] = {}
     cycles: list[dict[str, Any]] = []
     commands: dict[int, dict[str, Any]] = {}
     state_loaded: dict[str, Any] | None = None
     state_t_s: float | None = None
+    n_records = 0
     for record in read_records(log):
+        n_records += 1
         topic = record.topic
         payload = record.payload
         if topic.startswith("raw/"):
@@ -105,6 +109,8 @@ def replay(log: Path, config_path: Path, out_dir: Path | None = None, *, plots: 
         elif topic == "state_loaded" and state_loaded is None:
             state_loaded = payload.get("state")
             state_t_s = record.t_s
+    if n_records == 0:
+        raise ValueError(f"{log}: no records read — not a dpcontrol recording (MCAP), or empty")
     if not cycles:
         raise ValueError(f"{log}: no 'cycle' records — recorded without inputs, cannot replay")
 

@@ -267,15 +267,24 @@ def _add_demo(commands: Any) -> None:
 def _cmd_demo(args: argparse.Namespace) -> int:
     import json  # noqa: PLC0415
 
+    from dpcontrol.models.schema import ConfigError  # noqa: PLC0415
     from dpcontrol.outputs import unwritable_folder  # noqa: PLC0415
     from sim_plant.bench.demo import DemoError, describe_summary, run_demo  # noqa: PLC0415
+    from sim_plant.scenario import load_scenario  # noqa: PLC0415
 
+    try:  # the scenario checked as `sim-plant run` and `hil` check it, before any process starts
+        scenario_path = _scenario_path(args.scenario)
+        load_scenario(scenario_path)
+    except (ConfigError, KeyError) as error:
+        message = error.args[0] if isinstance(error, KeyError) and error.args else error
+        print(f"sim-plant demo: {message}", file=sys.stderr)
+        return EXIT_USAGE
     unwritable = unwritable_folder(args.out if args.out is not None else Path("runs"))  # (run_demo's default)
     if unwritable is not None:
         print(f"sim-plant demo: {unwritable}", file=sys.stderr)
         return EXIT_USAGE
     try:
-        report = run_demo(_scenario_path(args.scenario), args.out, duration_s=args.duration, live=args.live)
+        report = run_demo(scenario_path, args.out, duration_s=args.duration, live=args.live)
     except DemoError as error:
         print(f"sim-plant demo: {error}", file=sys.stderr)
         return EXIT_FAILURE

@@ -36,9 +36,8 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
 
-import yaml
-
 from dpcontrol.models.schema import ConfigError, Section, join
+from dpcontrol.yamlfile import read_yaml_file
 from interfaces.zenoh.config import check_endpoint
 from interfaces.zenoh.keys import validate_vessel_id
 from sim_plant.encoding import HEADING_SENTENCES, POSITION_SENTENCES
@@ -164,16 +163,8 @@ def load_controller_wiring(path: str | Path) -> ControllerWiring:
         Unreadable file, invalid YAML, or an invalid value of a key read here (names the file and
         the key path).
     """
-    file = str(path)
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except OSError as error:
-        raise ConfigError("", "a readable controller configuration file", str(error), file=file) from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as error:
-        raise ConfigError("", "valid YAML", str(error).replace("\n", " "), file=file) from None
-    return parse_controller_wiring(data, file=file)
+    _, data = read_yaml_file(path, what="a readable controller configuration file")
+    return parse_controller_wiring(data, file=str(path))
 
 
 def parse_controller_wiring(data: object, file: str | None = None) -> ControllerWiring:

@@ -47,10 +47,9 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from dpcontrol.models.schema import ConfigError, Section, join
 from dpcontrol.models.vessels import VesselData, vessel_from_config
+from dpcontrol.yamlfile import read_yaml_file
 from interfaces.messages import FixQuality
 from sim_plant.environment.spectra import SPECTRA
 from sim_plant.environment.waves import SeaState
@@ -229,16 +228,10 @@ def load_scenario(path: str | Path) -> Scenario:
     Raises
     ------
     ConfigError
-        Invalid YAML or content (the message names the file and the key path).
-    OSError
-        The file cannot be read.
+        An unreadable file, not UTF-8 text, invalid YAML or content (the message names the file and the
+        key path).
     """
-    path = Path(path)
-    text = path.read_text(encoding="utf-8")
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as error:
-        raise ConfigError("", "valid YAML", str(error).replace("\n", " "), file=str(path), show_got=True) from None
+    _, data = read_yaml_file(path, what="a readable scenario file")
     return parse_scenario(data, file=str(path))
 
 

@@ -24,6 +24,7 @@ from dpcontrol.guidance import ReferenceModelConfig, reference_config_from_mappi
 from dpcontrol.models.schema import ConfigError, Section, join, parse_list
 from dpcontrol.models.vessels import VesselData, vessel_from_config
 from dpcontrol.runtime.hub import HubConfig, SensorConfig, SensorKind
+from dpcontrol.yamlfile import read_yaml_file
 from interfaces.recorder import RecorderSettings
 from interfaces.zenoh.config import ZenohConfig
 
@@ -465,18 +466,11 @@ def load_config(path: str | Path) -> DaemonConfig:
     Raises
     ------
     ConfigError
-        For unreadable files, YAML syntax errors and invalid content (naming the file).
+        For unreadable files, files that are not UTF-8 text, YAML syntax errors and invalid content
+        (naming the file).
     """
-    file = str(path)
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except OSError as error:
-        raise ConfigError("", "a readable file", str(error), file=file) from None
-    try:
-        mapping = yaml.safe_load(text)
-    except yaml.YAMLError as error:
-        raise ConfigError("", "valid YAML", str(error).replace("\n", " "), file=file) from None
-    return parse_config(mapping, file=file, text=text)
+    text, mapping = read_yaml_file(path)
+    return parse_config(mapping, file=str(path), text=text)
 
 
 def config_summary(config: DaemonConfig) -> dict[str, Any]:

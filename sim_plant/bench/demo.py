@@ -38,7 +38,9 @@ from typing import Any
 import numpy as np
 import yaml
 
+from dpcontrol.models.schema import ConfigError
 from dpcontrol.platform_info import cpu_times, describe_steal, host_steal
+from dpcontrol.yamlfile import read_yaml_file
 from interfaces.zenoh.loopback import free_tcp_port
 
 DEMO_SENSORS = [
@@ -117,7 +119,10 @@ def prepare(scenario_path: Path, run_dir: Path, *, realtime: bool = False) -> tu
     user may (:func:`realtime_priority_allowed`); it shortens the tail of the cycle latency on a shared
     machine. Returns the two paths and the wiring (vessel id, zenoh endpoint, duration).
     """
-    scenario = yaml.safe_load(scenario_path.read_text(encoding="utf-8"))
+    try:
+        _, scenario = read_yaml_file(scenario_path, what="a readable scenario file")
+    except ConfigError as error:
+        raise DemoError(str(error)) from None
     if not isinstance(scenario, dict):
         raise DemoError(f"{scenario_path}: not a scenario mapping")
     protocols = {s.get("protocol", "nmea0183") for s in scenario.get("sensors") or []}
