@@ -4,10 +4,14 @@ Alarms are what the operator sees on ``dp/<vessel>/status`` and what the recorde
 is raised while a condition holds and cleared when it stops; the registry remembers when it
 started, counts occurrences and lists every transition since the last call to
 :meth:`AlarmRegistry.drain_events` so the recorder logs each change exactly once.
+:class:`AlarmJournal` writes the same transitions to the service's log (the journal under systemd), where
+the engineer who installs the daemon looks first.
 """
 
 from __future__ import annotations
 
+import logging
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from enum import IntEnum
 
@@ -120,3 +124,74 @@ class AlarmRegistry:
     def history_codes(self) -> set[str]:
         """Codes ever raised and still listed."""
         return set(self._alarms)
+
+
+#: log level of a raised alarm in the journal, by severity (a cleared one is logged at INFO)
+LOG_LEVELS = {Severity.INFO: logging.INFO, Severity.WARNING: logging.WARNING, Severity.ALARM: logging.ERROR,
+              Severity.CRITICAL: logging.CRITICAL}
+
+
+@dataclass
+class _Held:
+    """Transitions of one code not logged yet (it changed again within the interval)."""
+
+    count: int
+    last: AlarmEvent
+
+
+class AlarmJournal:
+    """Alarm transitions to a logger, at most one line per code per ``min_interval_s``.
+
+    A sensor at the edge of a threshold can raise and clear an alarm every cycle; its transitions within
+    ``min_interval_s`` of the last line logged for that code are counted, and one line at the end of the
+    interval gives their number and the code's state then — so the journal always ends with each code's
+    true state, and a flapping sensor costs one line per interval instead of 20 a second. The status and
+    the recorder keep every transition.
+
+    Parameters
+    ----------
+    logger : logging.Logger
+    min_interval_s : float
+        Shortest time between two lines for the same code [s].
+    """
+
+    def __init__(self, logger: logging.Logger, min_interval_s: float = 10.0) -> None:
+        self.logger = logger
+        self.min_interval_s = min_interval_s
+        self._last_logged: dict[str, float] = {}
+        self._held: dict[str, _Held] = {}
+
+    def write(self, t_s: float, events: Iterable[AlarmEvent]) -> None:
+        """Log ``events`` (from :meth:`AlarmRegistry.drain_events`), and what was held and is now due.
+
+        Parameters
+        ----------
+        t_s : float
+            Now, on the clock of the events [s].
+        events : iterable of AlarmEvent
+        """
+        for event in events:
+            last = self._last_logged.get(event.code)
+            held = self._held.get(event.code)
+            if held is not None:
+                held.count += 1
+                held.last = event
+            elif last is not None and event.t_s - last < self.min_interval_s:
+                self._held[event.code] = _Held(1, event)
+            else:
+                self._log(event, "")
+        if self._held:
+            for code in [c for c, h in self._held.items() if t_s - self._last_logged[c] >= self.min_interval_s]:
+                held = self._held.pop(code)
+                since = t_s - self._last_logged[code]
+                self._log(held.last, f" ({held.count} transition{'s' if held.count > 1 else ''} of this alarm "
+                                     f"in the last {since:.0f} s)")
+
+    def _log(self, event: AlarmEvent, note: str) -> None:
+        self._last_logged[event.code] = event.t_s
+        severity = event.severity.name
+        if event.raised:
+            self.logger.log(LOG_LEVELS[event.severity], "alarm raised [%s] %s: %s%s", severity, event.code,
+                            event.text, note)
+        else:
+            self.logger.info("alarm cleared [%s] %s: %s%s", severity, event.code, event.text, note)

@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from dpcontrol.platform_info import HostStealWindow
-from dpcontrol.runtime.alarms import AlarmRegistry, Severity
+from dpcontrol.runtime.alarms import AlarmEvent, AlarmJournal, AlarmRegistry, Severity
 from dpcontrol.runtime.config import DaemonConfig, TransportConfig, config_summary
 from dpcontrol.runtime.inputs import SensorRouter, link_source
 from dpcontrol.runtime.persist import BackgroundSaver, StateStore
@@ -314,6 +314,7 @@ class Daemon:
         self.wall_clock = wall_clock
         self.notifier = notifier or SystemdNotifier()
         self.alarms = AlarmRegistry()
+        self.alarm_journal = AlarmJournal(log)
         self.controller = DpController(config, self.alarms)
         self.replica: ControllerReplica | None = None
         self.spinner: DeadlineSpinner | None = None  # (loop.deadline_spin_ms; built when the loop starts)
@@ -589,7 +590,10 @@ class Daemon:
         drives = self._drives.state
         self.alarms.set(t_s, "thrusters.drives_lost", drives.seen and not drives.present, Severity.ALARM,
                         "the thruster drives' liveliness token is gone (dp/<vessel>/alive/plant)")
-        self._record(t_s, out, seq)
+        # every cycle, recorder or not (the registry keeps the transitions until they are drained)
+        events = self.alarms.drain_events()
+        self.alarm_journal.write(t_s, events)
+        self._record(t_s, out, seq, events)
         self._persist(t_s)
         return out, published
 
@@ -628,7 +632,7 @@ class Daemon:
                                     self.stats.missed_deadlines, self._host_steal_percent)
         return status_payload(self.controller, self.alarms, t_s, seq, cycle)
 
-    def _record(self, t_s: float, out: StepOutput, seq: int) -> None:
+    def _record(self, t_s: float, out: StepOutput, seq: int, events: list[AlarmEvent]) -> None:
         recorder = self.recorder
         if recorder is None:
             return
@@ -656,7 +660,7 @@ class Daemon:
             recorder.record("mode", t_s, {"t_s": t_s, "from": previous, "to": new, "reason": reason})
         for text in out.rejected_requests:
             recorder.record("mode", t_s, {"t_s": t_s, "rejected_request": text})
-        for event in self.alarms.drain_events():
+        for event in events:
             recorder.record("alarm", t_s, {"t_s": event.t_s, "code": event.code, "raised": event.raised,
                                            "severity": event.severity.name.lower(), "text": event.text})
         if not recorder.health.ok:
