@@ -357,11 +357,12 @@ class Daemon:
                                                                          extra=RUNTIME_TOPICS),
                                      config={"vessel_id": cfg.vessel_id, "config_sha256": cfg.config_hash,
                                              "text": cfg.source_text},
-                                     on_error=lambda error: log.error("recorder: %s", error))
+                                     on_error=None)  # it logs each new error itself; the alarm is raised below
         if cfg.state.path is not None:
             self.store = StateStore(cfg.state.path, cfg.state.period_s, cfg.state.max_age_s,
                                     config_hash=cfg.config_hash)
-            self.saver = BackgroundSaver(self.store, on_error=lambda error: log.error("state save: %s", error))
+            # (the saver logs each new error itself; the alarm is raised from the loop, in _persist)
+            self.saver = BackgroundSaver(self.store)
             self._resume()
         self.node = ZenohNode(cfg.zenoh, cfg.vessel_id, clock=self.clock)
         node = self.node
@@ -664,16 +665,22 @@ class Daemon:
             recorder.record("alarm", t_s, {"t_s": event.t_s, "code": event.code, "raised": event.raised,
                                            "severity": event.severity.name.lower(), "text": event.text})
         if not recorder.health.ok:
+            error = recorder.health.error
             self.alarms.raise_(t_s, "recorder.error", Severity.WARNING,
-                               f"black-box recorder: {recorder.health.error}")
+                               f"black-box recorder: {error.message if error is not None else recorder.health.state}")
         else:
             self.alarms.clear(t_s, "recorder.error")
 
     def _persist(self, t_s: float) -> None:
-        if self.saver is None or t_s - self._last_state_save < self.config.state.period_s:
+        saver = self.saver
+        if saver is None or t_s - self._last_state_save < self.config.state.period_s:
             return
         self._last_state_save = t_s
-        self.saver.submit(self.wall_clock(), self.controller.state_dict(t_s))
+        # the outcome of the previous write (set by the saver's thread; a str read is atomic)
+        failed = saver.last_error
+        self.alarms.set(t_s, "state.save_failed", failed is not None, Severity.WARNING,
+                        f"persisted state not written (a restart would start cold): {failed}")
+        saver.submit(self.wall_clock(), self.controller.state_dict(t_s))
 
     # ---------------------------------------------------------------- shutdown
     def _publish_zero(self, t_s: float) -> None:

@@ -223,6 +223,9 @@ class StateStore:
             if not self._cleaned:
                 self._remove_stale_temporaries()
             fd, tmp_name = tempfile.mkstemp(prefix=f".{self._path.name}.", suffix=".tmp", dir=directory)
+        except FileExistsError as error:  # mkdir's word for "the folder is a file": say that
+            raise StateStoreError(f"cannot write state file {self._path}: {directory} is a file, not a folder") \
+                from error
         except OSError as error:
             raise StateStoreError(f"cannot write state file {self._path}: {error.strerror or error}") from error
         try:
