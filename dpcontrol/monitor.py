@@ -555,7 +555,7 @@ def run_monitor(vessel: str, connect: Sequence[str] = DEFAULT_CONNECT, *, listen
         arguments (message on stderr).
     """
     console = console or Console()
-    errors = Console(stderr=True)
+    errors = Console(stderr=True, soft_wrap=True)  # one line per message, whatever the width
     try:
         validate_vessel_id(vessel)
         if not refresh_hz > 0.0 or not wait_s >= 0.0 or (duration_s is not None and not duration_s >= 0.0):
@@ -572,7 +572,14 @@ def run_monitor(vessel: str, connect: Sequence[str] = DEFAULT_CONNECT, *, listen
     try:
         feed = _Feed(node, vessel, stale_after_s, clock)
         if once:
-            return feed.print_once(console, wait_s)
+            code = feed.print_once(console, wait_s)
+            if code != 0:
+                where = ", ".join([*(f"connecting to {e}" for e in connect), *(f"listening on {e}" for e in listen)])
+                errors.print(f"dpcontrol monitor: nothing heard from vessel {vessel!r} within {wait_s:g} s "
+                             f"({where or 'no endpoints'}; {len(node.peers())} zenoh peers): is `dpcontrol run` up, "
+                             "with this vessel_id, and is the endpoint its zenoh.listen?", markup=False,
+                             highlight=False)
+            return code
         feed.live(console, duration_s, refresh_hz)
         return 0
     except KeyboardInterrupt:

@@ -40,6 +40,7 @@ PROTOCOLS: tuple[str, ...] = ("tcp", "udp", "tls", "quic", "ws", "unixsock-strea
 # <protocol>/<address>[?<metadata>][#<config>] (zenoh's endpoint syntax); the address is checked by zenoh.
 _ENDPOINT = re.compile(r"(?P<proto>[a-z][a-z0-9-]*)/(?P<address>[^?#\s]+)(?:\?[^#\s]*)?(?:#\S*)?")
 _WILDCARD_HOSTS = ("0.0.0.0", "[::]", "::")
+_HOST_PORT_PROTOCOLS = ("tcp", "udp", "tls", "quic")
 MAX_MESSAGE_BYTES = 2 * 1024 * 1024
 
 
@@ -63,6 +64,12 @@ def check_endpoint(endpoint: object, where: str = "endpoint") -> str:
     if match["proto"] not in PROTOCOLS:
         raise ValueError(f"{where}: unsupported protocol {match['proto']!r} in {endpoint!r} "
                          f"(expected one of {', '.join(PROTOCOLS)})")
+    if match["proto"] in _HOST_PORT_PROTOCOLS:
+        # zenoh itself accepts a bad port here and only fails (or retries silently) when it connects
+        host, _, port = match["address"].rpartition(":")
+        if not host or not port.isdigit() or int(port) > 65535:
+            raise ValueError(f"{where}: expected '<host>:<port>' with a port of 0-65535 after "
+                             f"'{match['proto']}/', got {endpoint!r}")
     return endpoint
 
 

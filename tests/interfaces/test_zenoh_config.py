@@ -7,7 +7,7 @@ import json
 import pytest
 
 from dpcontrol.models.schema import ConfigError
-from interfaces.zenoh.config import ZenohConfig, ZenohOpenError, listens_everywhere, open_session
+from interfaces.zenoh.config import ZenohConfig, ZenohOpenError, check_endpoint, listens_everywhere, open_session
 from interfaces.zenoh.loopback import free_tcp_port, loopback_endpoint
 from interfaces.zenoh.node import ZenohNode
 
@@ -93,3 +93,16 @@ def test_a_node_started_before_its_peer_finds_it_later() -> None:
             late.close()
     finally:
         early.close()
+
+
+@pytest.mark.parametrize("endpoint", ["tcp/127.0.0.1", "tcp/127.0.0.1:65536", "tcp/nohost:99999", "tcp/:7447",
+                                      "udp/10.0.0.1:port", "tls/[::1]"])
+def test_an_endpoint_without_a_valid_port_is_refused(endpoint: str) -> None:
+    with pytest.raises(ValueError, match="expected '<host>:<port>' with a port of 0-65535"):
+        check_endpoint(endpoint, "zenoh connect[0]")
+
+
+@pytest.mark.parametrize("endpoint", ["tcp/127.0.0.1:0", "tcp/[::1]:7447", "tcp/vessel-pc.local:7447?prio=1",
+                                      "udp/224.0.0.224:7446#iface=lo", "unixsock-stream//run/dp.sock"])
+def test_valid_endpoints_pass(endpoint: str) -> None:
+    assert check_endpoint(endpoint) == endpoint

@@ -163,12 +163,16 @@ def test_run_monitor_once_over_loopback() -> None:
         daemon.close()
 
 
-def test_run_monitor_once_with_nobody_there_says_so() -> None:
+def test_run_monitor_once_with_nobody_there_says_so(capsys: Any) -> None:
     out = io.StringIO()
-    code = run_monitor("ghost", [loopback_endpoint(free_tcp_port())], once=True, wait_s=0.2,
-                       console=Console(file=out, width=100))
+    endpoint = loopback_endpoint(free_tcp_port())
+    code = run_monitor("ghost", [endpoint], once=True, wait_s=0.2, console=Console(file=out, width=100))
     assert code == 1
     assert "no data" in out.getvalue()
+    # and on stderr, on one line, what was tried and what to check
+    (line,) = capsys.readouterr().err.splitlines()
+    assert line == (f"dpcontrol monitor: nothing heard from vessel 'ghost' within 0.2 s (connecting to {endpoint}; "
+                    "0 zenoh peers): is `dpcontrol run` up, with this vessel_id, and is the endpoint its zenoh.listen?")
 
 
 def test_run_monitor_live_for_a_duration() -> None:
@@ -184,6 +188,8 @@ def test_run_monitor_rejects_bad_arguments(capsys: Any) -> None:
     assert "invalid vessel id" in capsys.readouterr().err
     assert run_monitor("ok", ["127.0.0.1:7447"], once=True) == 2
     assert "protocol" in capsys.readouterr().err
+    assert run_monitor("ok", ["tcp/127.0.0.1:74470"], once=True) == 2  # zenoh would accept it, and never connect
+    assert "port of 0-65535" in capsys.readouterr().err
 
 
 def test_cli_arguments() -> None:
