@@ -128,9 +128,44 @@ def _cmd_run(args: argparse.Namespace) -> int:
                 "motion_peak_final_rad_s", "dominant_model_final_rad_s", "mrac_mass_surge_error_pct"):
         if metrics.get(key) is not None:
             print(f"  {key}: {metrics[key]}")
+    print(f"  alarms: {describe_alarms(summary.get('alarm_events') or [])}")
     print(f"sim-plant run: wrote {outputs.timeseries}, {outputs.summary_path} and {len(outputs.plots)} plots "
           f"in {outputs.out_dir}")
     return EXIT_OK
+
+
+def describe_alarms(events: list[dict[str, Any]], most: int = 6) -> str:
+    """Every alarm raised in a run, on one line, from the summary's ``alarm_events`` (the ``alarms`` list
+    keeps only those active or cleared in the last minute of the run).
+
+    Each code once, in the order first raised: ``code (severity, from t s[ to t s| still active][, raised
+    N times])``; ``none`` when nothing was raised.
+    """
+    order: list[str] = []
+    seen: dict[str, dict[str, Any]] = {}
+    for event in events:
+        code = str(event.get("code"))
+        entry = seen.get(code)
+        if entry is None:
+            if not event.get("raised"):
+                continue
+            entry = seen[code] = {"severity": event.get("severity"), "first": event.get("t_s"), "raised": 0}
+            order.append(code)
+        entry["active"] = bool(event.get("raised"))
+        entry["last"] = event.get("t_s")
+        if event.get("raised"):
+            entry["raised"] += 1
+            entry["severity"] = event.get("severity")
+    if not order:
+        return "none"
+    parts = []
+    for code in order[:most]:
+        entry = seen[code]
+        span = "still active" if entry["active"] else f"to {float(entry['last'] or 0.0):.1f} s"
+        times = f", raised {entry['raised']} times" if entry["raised"] > 1 else ""
+        parts.append(f"{code} ({entry['severity']}, from {float(entry['first'] or 0.0):.1f} s {span}{times})")
+    more = len(order) - most
+    return ", ".join(parts) + (f", and {more} more in summary.json" if more > 0 else "")
 
 
 # -- hil ---------------------------------------------------------------------------------------------

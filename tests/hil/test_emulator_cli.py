@@ -16,7 +16,7 @@ from typing import Any
 import pytest
 import yaml
 
-from sim_plant.cli import _kept_settings, main
+from sim_plant.cli import _kept_settings, describe_alarms, main
 
 ROOT = Path(__file__).resolve().parents[2]
 START_TIMEOUT_S = 60.0  # a cold interpreter importing zenoh, scipy, python-can on a loaded 2-core machine
@@ -153,3 +153,37 @@ def test_kind_overrides_keep_what_still_applies(tmp_path: Path) -> None:
     assert summary["control"] == "mrac" and summary["control_adapt"] is False
     # the scenario's ω0 = 0.6 rad/s kept (the default start would be 0.8 rad/s)
     assert summary["metrics"]["omega_hat_final_rad_s"] == pytest.approx(0.6, abs=0.05)
+
+
+def test_describe_alarms_lists_every_code_raised_even_those_cleared_long_before_the_end() -> None:
+    events = [
+        {"t_s": 0.8, "code": "heading.lost", "raised": True, "severity": "alarm"},
+        {"t_s": 10.3, "code": "heading.lost", "raised": False, "severity": "alarm"},
+        {"t_s": 12.0, "code": "sensor.gnss1.stale", "raised": True, "severity": "warning"},
+        {"t_s": 13.0, "code": "sensor.gnss1.stale", "raised": False, "severity": "warning"},
+        {"t_s": 20.0, "code": "sensor.gnss1.stale", "raised": True, "severity": "warning"},
+        {"t_s": 30.0, "code": "thrusters.capability", "raised": True, "severity": "alarm"},
+        {"t_s": 31.0, "code": "never.raised", "raised": False, "severity": "info"},  # a clear alone: ignored
+    ]
+    assert describe_alarms(events) == (
+        "heading.lost (alarm, from 0.8 s to 10.3 s), "
+        "sensor.gnss1.stale (warning, from 12.0 s still active, raised 2 times), "
+        "thrusters.capability (alarm, from 30.0 s still active)")
+    assert describe_alarms([]) == "none"
+    many = [{"t_s": float(i), "code": f"c{i}", "raised": True, "severity": "info"} for i in range(9)]
+    assert describe_alarms(many, most=6).endswith("c5 (info, from 5.0 s still active), and 3 more in summary.json")
+
+
+def test_run_prints_the_alarms_of_the_run(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    scenario = yaml.safe_load((ROOT / "sim_plant" / "scenarios" / "cs2-seed000.yaml").read_text(encoding="utf-8"))
+    scenario.update(name="gyro-dies", duration_s=20)
+    scenario["faults"] = [{"t_s": 5.0, "sensor": "gyro1", "kind": "gyro_dropout", "duration_s": 30.0}]
+    path = tmp_path / "gyro-dies.yaml"
+    path.write_text(yaml.safe_dump(scenario), encoding="utf-8")
+    assert main(["run", str(path), "--out", str(tmp_path / "out"), "--no-plots", "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    (line,) = [text for text in out.splitlines() if text.startswith("  alarms: ")]
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text(encoding="utf-8"))
+    raised = {event["code"] for event in summary["alarm_events"] if event["raised"]}
+    assert raised and all(code in line for code in raised), (line, raised)
+    assert "still active" in line  # the gyro is still out at the end
