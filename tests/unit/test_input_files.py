@@ -4,7 +4,6 @@ and a usage exit code; never a traceback (``dpcontrol.yamlfile``, ``dpcontrol re
 
 from __future__ import annotations
 
-import sys
 import time
 from pathlib import Path
 
@@ -116,5 +115,13 @@ def test_replay_and_export_say_a_file_is_not_a_recording(bad_files: dict[str, Pa
     assert f"cannot write into the output folder {blocker / 'csv'}" in capsys.readouterr().err
 
 
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(pytest.main([__file__, "-q"]))
+
+
+@pytest.mark.parametrize("duration", ["-5", "0", "nan", "inf", "ten"])
+def test_run_refuses_a_duration_that_is_not_a_finite_positive_time(duration: str,
+                                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    # nan ran the daemon forever; -5 and 0 started it (opening ports, zenoh, the recorder) to stop at once
+    with pytest.raises(SystemExit) as info:
+        dpcontrol_main(["run", "--config", str(ROOT / "deploy" / "config" / "cybership2.yaml"), "--duration", duration])
+    assert info.value.code == 2
+    assert "argument --duration: expected a" in capsys.readouterr().err
