@@ -25,8 +25,9 @@ from dpcontrol.models.schema import ConfigError
 
 
 def _configure_logging(verbose: bool) -> None:
-    logging.basicConfig(level=logging.DEBUG if verbose else logging.INFO,
-                        format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    from dpcontrol.logsetup import configure_logging  # noqa: PLC0415
+
+    configure_logging(logging.DEBUG if verbose else logging.INFO)
 
 
 def _cmd_run(args: argparse.Namespace) -> int:

@@ -54,7 +54,9 @@ def main(argv: list[str] | None = None) -> int:
     level = getattr(logging, str(args.log_level).upper(), None)
     if not isinstance(level, int):
         parser.error(f"unknown --log-level {args.log_level!r}")
-    logging.basicConfig(level=level, format="%(asctime)s %(name)s %(levelname)s %(message)s")
+    from dpcontrol.logsetup import configure_logging  # noqa: PLC0415 - after the environment above
+
+    configure_logging(level, terminal_format="%(asctime)s %(name)s %(levelname)s %(message)s")
     return int(args.handler(args))
 
 
