@@ -64,6 +64,25 @@ def machine_info() -> dict[str, Any]:
             "measured_at": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")}
 
 
+def available_memory_bytes() -> int | None:
+    """Memory the kernel estimates a new allocation can get without swapping [bytes].
+
+    Returns
+    -------
+    int or None
+        ``MemAvailable`` of ``/proc/meminfo`` (Linux); None where there is no such line.
+    """
+    try:
+        with open("/proc/meminfo", encoding="ascii") as handle:
+            for line in handle:
+                if line.startswith("MemAvailable:"):
+                    value, unit = line.split()[1:3]
+                    return int(value) * (1024 if unit == "kB" else 1)
+    except (OSError, ValueError):
+        return None
+    return None
+
+
 def cpu_times() -> tuple[int, ...] | None:
     """The machine's CPU time counters since boot, all CPUs together [clock ticks].
 

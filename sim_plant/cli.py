@@ -90,6 +90,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     from dpcontrol.models.schema import ConfigError  # noqa: PLC0415
     from dpcontrol.outputs import unwritable_folder  # noqa: PLC0415
+    from sim_plant.bench.lockstep import SimulationTooLargeError  # noqa: PLC0415
     from sim_plant.bench.run import build_simulation, run_and_report  # noqa: PLC0415
     from sim_plant.scenario import load_scenario  # noqa: PLC0415
 
@@ -120,8 +121,15 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if unwritable is not None:
         print(f"sim-plant run: {unwritable}", file=sys.stderr)
         return EXIT_USAGE
-    outputs = run_and_report(simulation, args.out, plots=not args.no_plots, progress=args.progress,
-                             duration_s=args.duration)
+    try:
+        outputs = run_and_report(simulation, args.out, plots=not args.no_plots, progress=args.progress,
+                                 duration_s=args.duration)
+    except SimulationTooLargeError as error:  # refused before the run started
+        print(f"sim-plant run: {error}", file=sys.stderr)
+        return EXIT_USAGE
+    except OSError as error:  # the results could not be written (a full disk, the folder gone)
+        print(f"sim-plant run: writing the results into {args.out} failed: {error}", file=sys.stderr)
+        return EXIT_FAILURE
     summary = outputs.summary
     metrics = summary.get("metrics", {})
     print(f"sim-plant run: {scenario.name}: {summary['steps']} steps of {summary['sample_time_s']} s in "

@@ -25,6 +25,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from dpcontrol.platform_info import available_memory_bytes
 from dpcontrol.runtime.alarms import AlarmEvent
 from dpcontrol.runtime.config import DaemonConfig, SensorRoute, parse_config
 from dpcontrol.runtime.hub import SensorState
@@ -668,6 +669,33 @@ def observers(*callbacks: Callable[[float, StepOutput], None]) -> Callable[[floa
     return observe
 
 
+class SimulationTooLargeError(ValueError):
+    """The run's time series would not fit in this machine's memory (raised before the run starts)."""
+
+
+def _timeseries_array(rows: int, columns: int, dt: float) -> np.ndarray:
+    """The NaN-filled ``rows × columns`` float64 array of a run, or :class:`SimulationTooLargeError`.
+
+    A run whose rows would take more than half the memory available is refused before it starts: numpy
+    may be granted the allocation (overcommit) and the process killed while it fills it, hours of a long
+    run lost, or refused with a bare MemoryError.
+    """
+    need = rows * columns * 8
+    available = available_memory_bytes()
+    if available is None or need <= available / 2:
+        try:
+            return np.full((rows, columns), np.nan)
+        except MemoryError:
+            pass
+    def size(n_bytes: float) -> str:
+        return f"{n_bytes / 2**30:.1f} GiB" if n_bytes >= 2**30 else f"{n_bytes / 2**20:.1f} MiB"
+
+    limit_s = "" if available is None else f"; at most about {available / 2 / (columns * 8) * dt / 3600:.1f} h here"
+    have = "" if available is None else f", more than half of the {size(available)} available"
+    raise SimulationTooLargeError(f"the time series of {rows} steps × {columns} columns needs {size(need)}{have}: "
+                                  f"run a shorter duration{limit_s}")
+
+
 class LockstepSimulation:
     """Plant + controller in lockstep (see the module docstring).
 
@@ -715,7 +743,7 @@ class LockstepSimulation:
         duration = scenario.duration_s if duration_s is None else duration_s
         steps = math.floor(duration / dt + 1e-9) + 1
         names = column_names(len(self.omegas), self.thruster_names)
-        data = np.full((steps if timeseries else 1, len(names)), np.nan)
+        data = _timeseries_array(steps if timeseries else 1, len(names), dt)
         columns = Columns(names, data)
         plant = self.plant
         controller = self.controller

@@ -187,3 +187,36 @@ def test_run_prints_the_alarms_of_the_run(tmp_path: Path, capsys: pytest.Capture
     raised = {event["code"] for event in summary["alarm_events"] if event["raised"]}
     assert raised and all(code in line for code in raised), (line, raised)
     assert "still active" in line  # the gyro is still out at the end
+
+
+def test_run_refuses_a_time_series_larger_than_the_memory_before_starting(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    import sim_plant.bench.lockstep as lockstep  # noqa: PLC0415
+
+    monkeypatch.setattr(lockstep, "available_memory_bytes", lambda: 4 * 2**20)  # a machine with 4 MiB free
+    started = time.monotonic()
+    # 300 s at 10 Hz × 60 columns is 1.4 MiB: fits
+    assert main(["run", "cs2-seed000", "--out", str(tmp_path / "fits"), "--no-plots", "--duration", "300"]) == 0
+    capsys.readouterr()
+    # 3000 s is 13.7 MiB: refused before the first step, with what it needs and what would fit
+    assert main(["run", "cs2-seed000", "--out", str(tmp_path / "big"), "--no-plots", "--duration", "3000"]) == 2
+    err = capsys.readouterr().err
+    assert err == ("sim-plant run: the time series of 30001 steps × 60 columns needs 13.7 MiB, more than half of "
+                   "the 4.0 MiB available: run a shorter duration; at most about 0.1 h here\n"), err
+    assert not (tmp_path / "big" / "timeseries.csv").exists()
+    assert time.monotonic() - started < 60.0
+
+
+def test_run_says_when_its_results_cannot_be_written(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    import errno  # noqa: PLC0415
+
+    import sim_plant.bench.run as run  # noqa: PLC0415
+
+    def full_disk(*_args: object) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(run, "write_timeseries_csv", full_disk)
+    assert main(["run", "cs2-seed000", "--out", str(tmp_path / "out"), "--no-plots", "--duration", "5"]) == 1
+    assert capsys.readouterr().err == (f"sim-plant run: writing the results into {tmp_path / 'out'} failed: "
+                                       "[Errno 28] No space left on device\n")

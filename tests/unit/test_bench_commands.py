@@ -10,7 +10,15 @@ import sys
 import time
 
 from dpcontrol.bench import format_bench
-from dpcontrol.platform_info import HostStealWindow, cpu_times, describe, describe_steal, host_steal, machine_info
+from dpcontrol.platform_info import (
+    HostStealWindow,
+    available_memory_bytes,
+    cpu_times,
+    describe,
+    describe_steal,
+    host_steal,
+    machine_info,
+)
 
 ENV = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
 
@@ -138,3 +146,11 @@ def test_sim_plant_bench_json_and_text_report_both_runs() -> None:
     assert text.returncode == 0, text.stderr
     assert "tanker-seed003" in text.stdout and "cs2-seed000" in text.stdout and "machine: " in text.stdout
     assert text.stdout.count("host steal ") == 2  # one per run
+
+
+def test_available_memory_is_read_from_meminfo() -> None:
+    available = available_memory_bytes()
+    assert available is not None and available > 2**26  # Linux: more than 64 MiB on any machine that runs this
+    with open("/proc/meminfo", encoding="ascii") as handle:
+        total_kib = int(next(line for line in handle if line.startswith("MemTotal:")).split()[1])
+    assert available <= total_kib * 1024
