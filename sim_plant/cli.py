@@ -92,6 +92,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from dpcontrol.outputs import unwritable_folder  # noqa: PLC0415
     from sim_plant.bench.lockstep import SimulationTooLargeError  # noqa: PLC0415
     from sim_plant.bench.run import build_simulation, run_and_report  # noqa: PLC0415
+    from sim_plant.plant import PlantDivergedError  # noqa: PLC0415
     from sim_plant.scenario import load_scenario  # noqa: PLC0415
 
     overrides: dict[str, Any] = {}
@@ -127,6 +128,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
     except SimulationTooLargeError as error:  # refused before the run started
         print(f"sim-plant run: {error}", file=sys.stderr)
         return EXIT_USAGE
+    except PlantDivergedError as error:  # the scenario drove the vessel's model out of its range
+        print(f"sim-plant run: the run stopped: {error}", file=sys.stderr)
+        return EXIT_FAILURE
     except OSError as error:  # the results could not be written (a full disk, the folder gone)
         print(f"sim-plant run: writing the results into {args.out} failed: {error}", file=sys.stderr)
         return EXIT_FAILURE

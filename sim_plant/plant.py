@@ -146,6 +146,10 @@ def _total_pose(north_m: float, east_m: float, psi_rad: float, wave: WaveSample)
             ssa(psi_rad + wave.yaw_rad))
 
 
+class PlantDivergedError(ArithmeticError):
+    """The integrated state became infinite or NaN (a scenario far outside the models' range)."""
+
+
 class Plant:
     """The plant of one scenario (see the module docstring).
 
@@ -270,21 +274,38 @@ class Plant:
         if t_s_end < self._t - _TOL_S:
             raise ValueError(f"advance: t_s_end {t_s_end} is before the plant time {self._t}")
         h = self._h
-        while self._t < t_s_end - _TOL_S:
-            t = self._t
-            grid_next = (self._k + 1) * h
-            t_next = min(t_s_end, grid_next, self._next_event)
-            if abs(t_next - grid_next) <= _TOL_S:
-                t_next = grid_next
-            self._substep(t, t_next - t)
-            self._t = t_next
-            if t_next == grid_next:
-                self._k += 1
-            if self._next_event <= t_next + _TOL_S:
-                self._process_events(t_next)
+        try:
+            while self._t < t_s_end - _TOL_S:
+                t = self._t
+                grid_next = (self._k + 1) * h
+                t_next = min(t_s_end, grid_next, self._next_event)
+                if abs(t_next - grid_next) <= _TOL_S:
+                    t_next = grid_next
+                self._substep(t, t_next - t)
+                self._t = t_next
+                if t_next == grid_next:
+                    self._k += 1
+                if self._next_event <= t_next + _TOL_S:
+                    self._process_events(t_next)
+        except (ValueError, OverflowError, ZeroDivisionError) as error:
+            if self._state_finite():
+                raise
+            raise self._diverged() from error
+        if not self._state_finite():  # (one check per call: a few hundred ns)
+            raise self._diverged()
         if self._mass_varies:
             self._update_mass(self._t)  # the truth reports the mass the next substep will use
         self._truth_cache = None
+
+    def _state_finite(self) -> bool:
+        return math.isfinite(math.fsum(self._x.tolist()))  # NaN and ±inf both propagate into the sum
+
+    def _diverged(self) -> PlantDivergedError:
+        north, east, _, u, v, r = self._x.tolist()
+        return PlantDivergedError(
+            f"the vessel's motion left the model's range at t = {self._t:.2f} s (surge {u:.3g} m/s, sway "
+            f"{v:.3g} m/s, yaw rate {r:.3g} rad/s, at {north:.3g} m N, {east:.3g} m E): a value of the scenario "
+            "(forces, current, wind, the vessel's data) is far outside what the vessel can meet")
 
     def _substep(self, t: float, h: float) -> None:
         if self._mass_varies:

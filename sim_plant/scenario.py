@@ -32,6 +32,11 @@ heading-only setpoint is an autopilot course),
 ``quality``, ``satellites``, ``hdop``, ``antenna_height_m``, ``gst``; gyro: ``noise_deg``, ``bias_deg``,
 ``markov_deg``, ``markov_time_constant_s``, ``rate_of_turn``, ``rot_noise_degps``}] (default: one GNSS
 ``gnss1`` and one gyro ``gyro1`` on nmea0183 with the vessel's default noise).
+
+Values past the range of the plant's models are refused as typos: ``hs_m`` ≤ 30, current ``speed_mps``
+and ``speed_std_mps`` ≤ 10, wind ``speed_mps`` ≤ 80, initial ``surge_mps``/``sway_mps`` within ±30 and
+``yaw_rate_degps`` within ±30. A run that still drives the vessel's state to overflow (inline vessel
+data far from any ship) stops with :class:`sim_plant.plant.PlantDivergedError`, naming the time.
 """
 
 from __future__ import annotations
@@ -56,6 +61,15 @@ from sim_plant.environment.waves import SeaState
 from sim_plant.faults import FAULT_KINDS, GNSS_FAULTS, GYRO_FAULTS, THRUSTER_FAULTS, Fault
 from sim_plant.sensors import PROTOCOLS, SENSOR_KINDS, GnssSpec, GyroSpec, SensorSpec
 from sim_plant.vessel_data import extras_for
+
+# The range of the plant's models, beyond any sea a vessel keeps station in (a value past it is a typo, and
+# would drive the integration to overflow): the highest waves recorded are below 30 m Hs, ocean currents
+# below 3 m/s (tidal races 7 m/s), 10-min mean winds of a category-5 hurricane about 70 m/s.
+MAX_HS_M = 30.0
+MAX_CURRENT_MPS = 10.0
+MAX_WIND_MPS = 80.0
+MAX_SPEED_MPS = 30.0
+MAX_YAW_RATE_DEGPS = 30.0
 
 DEFAULT_DATUM_DEG = (63.4305, 10.3951)  # Trondheim fjord, home of CyberShip II
 DEFAULT_UTC_START_S = 36000.0
@@ -305,9 +319,11 @@ def _parse(data: object, file: str | None) -> Scenario:
         north_m=init_sec.number("north_m", 0.0),
         east_m=init_sec.number("east_m", 0.0),
         heading_rad=math.radians(init_sec.number("heading_deg", 0.0)),
-        surge_mps=init_sec.number("surge_mps", vessel.service_speed_mps),
-        sway_mps=init_sec.number("sway_mps", 0.0),
-        yaw_rate_radps=math.radians(init_sec.number("yaw_rate_degps", 0.0)),
+        surge_mps=init_sec.number("surge_mps", vessel.service_speed_mps, minimum=-MAX_SPEED_MPS,
+                                  maximum=MAX_SPEED_MPS),
+        sway_mps=init_sec.number("sway_mps", 0.0, minimum=-MAX_SPEED_MPS, maximum=MAX_SPEED_MPS),
+        yaw_rate_radps=math.radians(init_sec.number("yaw_rate_degps", 0.0, minimum=-MAX_YAW_RATE_DEGPS,
+                                                    maximum=MAX_YAW_RATE_DEGPS)),
     )
     init_sec.finish()
     if extras.manoeuvring is not None and not initial.surge_mps > 0.0:
@@ -341,7 +357,7 @@ def _sea_states(root: Section) -> tuple[SeaState, ...]:
         sec = Section.of(item, where)
         t = sec.number("t_s", minimum=0.0)
         spectrum = sec.string("spectrum", "jonswap", choices=SPECTRA)
-        hs = sec.number("hs_m", minimum=0.0)
+        hs = sec.number("hs_m", minimum=0.0, maximum=MAX_HS_M)
         if sec.has("omega_peak_rad_s") == sec.has("tp_s"):
             raise ConfigError(join(where, "omega_peak_rad_s"), "exactly one of omega_peak_rad_s or tp_s",
                               show_got=False)
@@ -377,9 +393,9 @@ def _sea_states(root: Section) -> tuple[SeaState, ...]:
 def _current(sec: Section) -> CurrentSpec:
     var = sec.section("variation")
     spec = CurrentSpec(
-        speed_mps=sec.number("speed_mps", 0.0, minimum=0.0),
+        speed_mps=sec.number("speed_mps", 0.0, minimum=0.0, maximum=MAX_CURRENT_MPS),
         direction_rad=math.radians(sec.number("direction_deg", 0.0)),
-        speed_std_mps=var.number("speed_std_mps", 0.0, minimum=0.0),
+        speed_std_mps=var.number("speed_std_mps", 0.0, minimum=0.0, maximum=MAX_CURRENT_MPS),
         direction_std_rad=math.radians(var.number("direction_std_deg", 0.0, minimum=0.0)),
         time_constant_s=var.number("time_constant_s", 600.0, minimum=0.0, exclusive_minimum=True),
     )
@@ -390,7 +406,7 @@ def _current(sec: Section) -> CurrentSpec:
 
 def _wind(sec: Section) -> WindSpec:
     spec = WindSpec(
-        speed_mps=sec.number("speed_mps", 0.0, minimum=0.0),
+        speed_mps=sec.number("speed_mps", 0.0, minimum=0.0, maximum=MAX_WIND_MPS),
         direction_rad=math.radians(sec.number("direction_deg", 0.0)),
         gusts=sec.boolean("gusts", True),
         height_m=sec.number("height_m", 10.0, minimum=0.0, exclusive_minimum=True),

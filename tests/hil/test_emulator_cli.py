@@ -220,3 +220,15 @@ def test_run_says_when_its_results_cannot_be_written(tmp_path: Path, capsys: pyt
     assert main(["run", "cs2-seed000", "--out", str(tmp_path / "out"), "--no-plots", "--duration", "5"]) == 1
     assert capsys.readouterr().err == (f"sim-plant run: writing the results into {tmp_path / 'out'} failed: "
                                        "[Errno 28] No space left on device\n")
+
+
+def test_run_stops_with_one_line_when_the_plant_leaves_its_range(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    from sim_plant.plant import Plant  # noqa: PLC0415
+
+    monkeypatch.setattr(Plant, "_state_finite", lambda plant: plant.t_s < 3.0)  # as if it overflowed at 3 s
+    assert main(["run", "cs2-seed000", "--out", str(tmp_path / "out"), "--no-plots", "--duration", "10"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("sim-plant run: the run stopped: the vessel's motion left the model's range at "
+                          "t = 3.00 s"), err
+    assert "Traceback" not in err

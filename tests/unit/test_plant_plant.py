@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from interfaces.messages import Heading, PositionFix
-from sim_plant.plant import Plant
+from sim_plant.plant import Plant, PlantDivergedError
 from sim_plant.scenario import builtin_scenario_path, load_scenario, parse_scenario
 from sim_plant.thrusters import CommandError, ThrusterCommand
 
@@ -80,6 +80,15 @@ def test_real_time_calls_at_arbitrary_times_follow_the_lockstep_run() -> None:
     assert b.t_s == 20.0
     assert b.state() == pytest.approx(a.state(), rel=1e-6, abs=1e-6)
     assert [s.t_s for s in b.sensor_samples(20.0)] == [s.t_s for s in a.sensor_samples(20.0)]
+
+
+@pytest.mark.parametrize("value", [math.inf, math.nan])
+def test_a_state_that_leaves_the_finite_numbers_stops_the_plant_with_its_time_and_speeds(value: float) -> None:
+    plant = _plant()
+    plant.advance(1.0)
+    plant._x[3] = value  # what an overflow leaves behind (a scenario far outside the models' range)
+    with pytest.raises(PlantDivergedError, match=r"left the model's range at t = 1\.\d\d s \(surge (inf|nan) m/s"):
+        plant.advance(2.0)
 
 
 def test_advance_rejects_the_past_and_non_numbers() -> None:

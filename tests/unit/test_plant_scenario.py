@@ -127,6 +127,12 @@ def test_a_typo_is_named(path, value, key) -> None:
     ("setpoints", [{"t_s": 0, "north_m": 1}], "setpoints[0].east_m", "together"),
     ("setpoints", [{"t_s": 0}], "setpoints[0].heading_deg", "a position"),
     ("datum.lat_deg", 91, "datum.lat_deg", "<= 90"),
+    # beyond the models' range: typos that drove the integration to overflow (a traceback deep in the waves)
+    ("current.speed_mps", 1e9, "current.speed_mps", "<= 10"),
+    ("wind.speed_mps", 120, "wind.speed_mps", "<= 80"),
+    ("sea_states.0.hs_m", 45, "sea_states[0].hs_m", "<= 30"),
+    ("initial.surge_mps", 77175.0, "initial.surge_mps", "<= 30"),
+    ("initial.yaw_rate_degps", -90, "initial.yaw_rate_degps", ">= -30"),
 ])
 def test_bad_values_name_the_key(path, value, where, expected) -> None:
     with pytest.raises(ConfigError) as info:
