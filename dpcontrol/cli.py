@@ -47,7 +47,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
         if unwritable is not None:
             print(f"dpcontrol: --stats-out {args.stats_out}: {unwritable}", file=sys.stderr)
             return 2
-    daemon = Daemon(config)
+    try:
+        daemon = Daemon(config)
+    except ConfigError as error:  # (the controller is built from the configuration here)
+        print(f"dpcontrol: invalid configuration: {error}", file=sys.stderr)
+        return 2
     code = daemon.run(duration_s=args.duration)
     if args.stats_out:
         stats = daemon.stats.summary()
@@ -69,9 +73,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 def _cmd_check_config(args: argparse.Namespace) -> int:
     from dpcontrol.runtime.config import load_config  # noqa: PLC0415
+    from dpcontrol.runtime.step import DpController  # noqa: PLC0415
 
     try:
         config = load_config(args.file)
+        DpController(config)  # what the daemon builds first: settings that pass alone but build nothing
     except ConfigError as error:
         print(f"dpcontrol: invalid configuration: {error}", file=sys.stderr)
         return 2

@@ -35,8 +35,10 @@ heading-only setpoint is an autopilot course),
 
 Values past the range of the plant's models are refused as typos: ``hs_m`` ≤ 30, current ``speed_mps``
 and ``speed_std_mps`` ≤ 10, wind ``speed_mps`` ≤ 80, initial ``surge_mps``/``sway_mps`` within ±30 and
-``yaw_rate_degps`` within ±30. A run that still drives the vessel's state to overflow (inline vessel
-data far from any ship) stops with :class:`sim_plant.plant.PlantDivergedError`, naming the time.
+``yaw_rate_degps`` within ±30; GNSS ``noise_m``, ``markov_m`` ≤ 1000 and ``antenna_height_m`` within
+±1000, ``hdop`` < 100; gyro ``noise_deg``, ``markov_deg`` ≤ 180, ``rot_noise_degps`` ≤ 30. A run that still
+drives the vessel's state to overflow (inline vessel data far from any ship) stops with
+:class:`sim_plant.plant.PlantDivergedError`, naming the time.
 """
 
 from __future__ import annotations
@@ -70,6 +72,7 @@ MAX_CURRENT_MPS = 10.0
 MAX_WIND_MPS = 80.0
 MAX_SPEED_MPS = 30.0
 MAX_YAW_RATE_DEGPS = 30.0
+MAX_GNSS_ERROR_M = 1000.0  # noise, slow error and antenna height: far beyond any receiver a DP system uses
 
 DEFAULT_DATUM_DEG = (63.4305, 10.3951)  # Trondheim fjord, home of CyberShip II
 DEFAULT_UTC_START_S = 36000.0
@@ -475,15 +478,16 @@ def _sensors(root: Section, gnss_noise_m: float, gyro_noise_deg: float) -> tuple
             spec = GnssSpec(
                 name=name, protocol=protocol,
                 rate_hz=sec.number("rate_hz", 5.0, minimum=0.0, exclusive_minimum=True, maximum=100.0),
-                noise_m=sec.number("noise_m", gnss_noise_m, minimum=0.0),
-                markov_m=sec.number("markov_m", 0.0, minimum=0.0),
+                noise_m=sec.number("noise_m", gnss_noise_m, minimum=0.0, maximum=MAX_GNSS_ERROR_M),
+                markov_m=sec.number("markov_m", 0.0, minimum=0.0, maximum=MAX_GNSS_ERROR_M),
                 markov_time_constant_s=sec.number("markov_time_constant_s", 300.0, minimum=0.0,
                                                   exclusive_minimum=True),
                 lever_arm_m=(float(lever[0]), float(lever[1])),
                 quality=QUALITIES[quality],
                 satellites=sec.integer("satellites", 12, minimum=0, maximum=99),
-                hdop=sec.number("hdop", 0.8, minimum=0.0),
-                antenna_height_m=sec.number("antenna_height_m", 0.0),
+                hdop=sec.number("hdop", 0.8, minimum=0.0, maximum=99.99),  # (GGA's field: 2 decimals, < 100)
+                antenna_height_m=sec.number("antenna_height_m", 0.0, minimum=-MAX_GNSS_ERROR_M,
+                                            maximum=MAX_GNSS_ERROR_M),
                 gst=sec.boolean("gst", True),
                 offset_s=offset,
             )
@@ -491,13 +495,14 @@ def _sensors(root: Section, gnss_noise_m: float, gyro_noise_deg: float) -> tuple
             spec = GyroSpec(
                 name=name, protocol=protocol,
                 rate_hz=sec.number("rate_hz", 10.0, minimum=0.0, exclusive_minimum=True, maximum=200.0),
-                noise_rad=math.radians(sec.number("noise_deg", gyro_noise_deg, minimum=0.0)),
+                noise_rad=math.radians(sec.number("noise_deg", gyro_noise_deg, minimum=0.0, maximum=180.0)),
                 bias_rad=math.radians(sec.number("bias_deg", 0.0)),
-                markov_rad=math.radians(sec.number("markov_deg", 0.0, minimum=0.0)),
+                markov_rad=math.radians(sec.number("markov_deg", 0.0, minimum=0.0, maximum=180.0)),
                 markov_time_constant_s=sec.number("markov_time_constant_s", 600.0, minimum=0.0,
                                                   exclusive_minimum=True),
                 rate_of_turn=sec.boolean("rate_of_turn", True),
-                rot_noise_radps=math.radians(sec.number("rot_noise_degps", 0.02, minimum=0.0)),
+                rot_noise_radps=math.radians(sec.number("rot_noise_degps", 0.02, minimum=0.0,
+                                                        maximum=MAX_YAW_RATE_DEGPS)),
                 offset_s=offset,
             )
         sec.finish()

@@ -21,8 +21,9 @@ a ramp, never a jump.
 
 from __future__ import annotations
 
+import contextlib
 import math
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from enum import Enum
 from typing import Any
@@ -34,6 +35,7 @@ from dpcontrol.control import ALL_DOFS, HEADING_ONLY, AutopilotConfig, HeadingAu
 from dpcontrol.estimation import WaveFilterOutput
 from dpcontrol.guidance import Reference, ReferenceModel
 from dpcontrol.models.frames import body_to_ned
+from dpcontrol.models.schema import ConfigError
 from dpcontrol.runtime.alarms import AlarmRegistry, Severity
 from dpcontrol.runtime.config import DaemonConfig
 from dpcontrol.runtime.estimators import WAVE_FILTER_KINDS, MassAdaptiveEstimator, make_estimator
@@ -102,6 +104,18 @@ class StepOutput:
     mode_changes: list[tuple[str, str, str]] = field(default_factory=list)
 
 
+@contextlib.contextmanager
+def _section_of_config(section: str, config: DaemonConfig) -> Iterator[None]:
+    """Turn a ValueError raised while building from ``section`` into a :class:`ConfigError` naming it."""
+    try:
+        yield
+    except ConfigError:
+        raise
+    except (ValueError, np.linalg.LinAlgError) as error:
+        raise ConfigError(section, f"{section} settings from which the controller can be built", str(error),
+                          file=config.source_file) from None
+
+
 class DpController:
     """The whole controller of one vessel: hub, estimator, guidance, control, allocation, modes.
 
@@ -123,15 +137,21 @@ class DpController:
         self.dt_s = config.sample_time_s
         datum = None if config.datum is None else LocalFrame(config.datum[0], config.datum[1])
         self.hub = SensorHub(config.sensors, config.hub, self.alarms, datum)
-        self.estimator = make_estimator(config.estimator.kind, config.estimator.wave_filter, vessel, self.dt_s,
-                                        dict(config.estimator.options))
-        self.reference_model = ReferenceModel(config.guidance)
+        # A value that passes each key's own check can still leave nothing to build (a wave filter whose
+        # Riccati equation has no stabilising solution): named here as the section it comes from, so that
+        # check-config refuses what the daemon could not start with.
+        with _section_of_config("estimator", config):
+            self.estimator = make_estimator(config.estimator.kind, config.estimator.wave_filter, vessel, self.dt_s,
+                                            dict(config.estimator.options))
+        with _section_of_config("guidance", config):
+            self.reference_model = ReferenceModel(config.guidance)
         self.autopilot: HeadingAutopilot | None = None
-        if isinstance(config.control.config, AutopilotConfig):
-            self.autopilot = HeadingAutopilot(config.control.config)
-            self.controller = None
-        else:
-            self.controller = make_controller(config.control.config)
+        with _section_of_config("control", config):
+            if isinstance(config.control.config, AutopilotConfig):
+                self.autopilot = HeadingAutopilot(config.control.config)
+                self.controller = None
+            else:
+                self.controller = make_controller(config.control.config)
         # An adapting MRAC with a DP wave filter: the filter's model inertia follows the MRAC's mass estimate
         # between set-point moves (see MassAdaptiveEstimator: on M₀ alone the filter misleads the MRAC).
         self._mass_adaptive: MassAdaptiveEstimator | None = None
@@ -140,7 +160,8 @@ class DpController:
             self._mass_adaptive = MassAdaptiveEstimator(self.estimator, np.diag(vessel.mass_matrix))
             self.estimator = self._mass_adaptive
         self.thrusters = vessel.thrusters
-        self.allocator = ThrustAllocator(vessel.thrusters, self.dt_s, **dict(config.allocation))
+        with _section_of_config("allocation", config):
+            self.allocator = ThrustAllocator(vessel.thrusters, self.dt_s, **dict(config.allocation))
         # The fastest the drives can change the generalized force (Σ |B|·Ṫmax per DOF) over the rigid-body +
         # added mass: the rate at which the reference acceleration fed forward may change (see _jerk_limited).
         geometry = self.allocator.geometry

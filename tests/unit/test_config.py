@@ -133,6 +133,22 @@ def test_check_config_cli_refuses_a_broken_file(tmp_path: Path, capsys: pytest.C
     assert main(["check-config", str(tmp_path / "missing.yaml")]) == 2
 
 
+def test_settings_that_pass_alone_but_build_no_wave_filter_are_refused_by_check_config_and_run(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # found by a fuzz: each value is in its own range, but the filter's Riccati equation has no stabilising
+    # solution; check-config said OK and `dpcontrol run` ended in a traceback when it built the controller
+    unbuildable = copy.deepcopy(BASE)
+    unbuildable["estimator"] = {"kind": "mmae", "position_noise_std_m": 1e9}
+    path = tmp_path / "unbuildable.yaml"
+    path.write_text(yaml.safe_dump(unbuildable))
+    expected = (f"dpcontrol: invalid configuration: {path}: estimator: expected estimator settings from which the "
+                "controller can be built, got 'no stabilising solution of the filter Riccati equation")
+    assert main(["check-config", str(path)]) == 2
+    assert capsys.readouterr().err.startswith(expected)
+    assert main(["run", "--config", str(path), "--duration", "1"]) == 2  # refused before anything is opened
+    assert capsys.readouterr().err.startswith(expected)
+
+
 def test_daemon_refuses_a_stats_file_it_could_not_write_before_starting(
         tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
     path = tmp_path / "vessel.yaml"

@@ -133,6 +133,9 @@ def test_a_typo_is_named(path, value, key) -> None:
     ("sea_states.0.hs_m", 45, "sea_states[0].hs_m", "<= 30"),
     ("initial.surge_mps", 77175.0, "initial.surge_mps", "<= 30"),
     ("initial.yaw_rate_degps", -90, "initial.yaw_rate_degps", ">= -30"),
+    ("sensors.0.noise_m", 1e9, "sensors[0].noise_m", "<= 1000"),  # was a ValueError from the GST encoder
+    ("sensors.0.hdop", 150, "sensors[0].hdop", "<= 99.99"),
+    ("sensors.1.noise_deg", 400, "sensors[1].noise_deg", "<= 180"),
 ])
 def test_bad_values_name_the_key(path, value, where, expected) -> None:
     with pytest.raises(ConfigError) as info:
