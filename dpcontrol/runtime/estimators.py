@@ -92,8 +92,15 @@ class KalmanBucyEstimator:
         x0[POSITION] = y_n
         x0[POSITION[2]] = ssa(float(y_n[2]))
         model = self._model
+        # P0 (seed 004 eq. (46) gives no value): the positions come from one sample, so its variance; the
+        # rates are unknown at a reset, 1 m/s and 2 °/s (1σ). P0 = I (1 rad² of heading against a 0.1 deg²
+        # sample) made the Riccati equation so stiff that the first seconds needed ~800 RK4 substeps a
+        # period: 0.1 s of CPU per 0.1 s cycle after every reset.
+        p0 = np.empty(6)
+        p0[POSITION] = np.diag(model.R_sample)
+        p0[VELOCITY] = (1.0, 1.0, math.radians(2.0) ** 2)
         f = KalmanBucyFilter(model.A, model.B, model.C, model.G, self._q, R=model.intensity_R(self._dt),
-                             dt_s=self._dt, x0=x0, P0=np.eye(6))
+                             dt_s=self._dt, x0=x0, P0=np.diag(p0))
         full = f.Ct_Rinv.copy()
         self._gains = {}
         for pattern in ((n, e, h) for n in (True, False) for e in (True, False) for h in (True, False)):
@@ -223,6 +230,9 @@ class CourseKeepingEstimator:
             yaw_accel_intensity=2.0 * math.radians(0.05) ** 2 / period,
             bias_intensity=(gain / period * bias_rudder_rad) ** 2 / bias_time_s, compass_std_rad=compass_std_rad)
         self._dt = sample_time_s
+        # Built once here so that settings with no steady-state filter (no stabilising Riccati solution) are
+        # refused with the configuration, not at the first heading, every cycle; reset builds it on the heading.
+        HeadingKalmanFilter(self._model, self._dt, 0.0)
         self._filter: HeadingKalmanFilter | None = None
         self._position = np.zeros(2)
         self._out = _output(5)

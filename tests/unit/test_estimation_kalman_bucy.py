@@ -18,6 +18,7 @@ from dpcontrol.estimation.kalman_bucy import (
     body_velocity,
     discrete_counterpart,
 )
+from dpcontrol.runtime.estimators import KalmanBucyEstimator
 
 DT = 0.1
 DEG2 = (math.pi / 180.0) ** 2
@@ -154,3 +155,18 @@ def test_kalman_bucy_rejects_bad_settings() -> None:
     m = blue_lady_model()
     with pytest.raises(ValueError):
         KalmanBucyFilter(m.A, m.B, m.C, m.G, m.Q, R=m.intensity_R(DT), dt_s=0.0, x0=np.zeros(6), P0=np.eye(6))
+
+
+def test_a_reset_starts_the_riccati_equation_near_the_measurement_noise_not_stiff() -> None:
+    # P0 = I (1 rad² of heading against a 0.1 deg² sample) needed ~800 RK4 substeps per 0.1 s period after
+    # every reset: 0.1 s of CPU per control cycle for the first seconds, a missed deadline each cycle
+    estimator = KalmanBucyEstimator(0.1)
+    estimator.reset(np.array([10.0, -5.0, math.radians(30.0)]))
+    f = estimator._filter
+    assert f is not None
+    assert f.substeps_for(f.P) <= 10
+    model = blue_lady_model()
+    assert np.allclose(np.diag(f.P)[[1, 3, 5]], np.diag(model.R_sample))  # positions: one sample's variance
+    for _ in range(20):
+        estimator.step(np.array([10.0, -5.0, math.radians(30.0)]), np.zeros(3))
+    assert estimator._filter.substeps_for(estimator._filter.P) <= 10
