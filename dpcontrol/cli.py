@@ -16,11 +16,11 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import argparse
 import json
 import logging
-import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from dpcontrol.arguments import positive_number
 from dpcontrol.models.schema import ConfigError
 
 
@@ -185,24 +185,13 @@ def _cmd_log_export(args: argparse.Namespace) -> int:
     return 0
 
 
-def _positive_seconds(text: str) -> float:
-    """``--duration``: a finite number of seconds > 0 (``nan`` ran forever, ``-5`` started and stopped at once)."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}") from None
-    if not 0.0 < value < math.inf:
-        raise argparse.ArgumentTypeError(f"expected a finite number of seconds > 0, got {text!r}")
-    return value
-
-
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="dpcontrol", description="Dynamic positioning controller service.")
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("run", help="run the controller daemon (systemd Type=notify)")
     p.add_argument("--config", required=True, help="vessel configuration (YAML)")
-    p.add_argument("--duration", type=_positive_seconds, default=None,
+    p.add_argument("--duration", type=positive_number, default=None,
                    help="stop after this many seconds (tests, benches)")
     p.add_argument("--stats-out", default=None, help="write the loop timing statistics (JSON) here at exit")
     p.add_argument("-v", "--verbose", action="store_true")

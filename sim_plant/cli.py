@@ -24,6 +24,8 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
+from dpcontrol.arguments import positive_number
+
 # Small matrices only: a threaded BLAS costs ~100x per LAPACK call on a loaded 2-core machine.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -78,7 +80,7 @@ def _add_run(commands: Any) -> None:
                      help="override the controller kind (mrac-fixed: MRAC structure with adaptation off)")
     sub.add_argument("--override", action="append", default=[], metavar="YAML",
                      help="controller config sections to override, e.g. '{estimator: {kind: kf, omega_rad_s: 0.9}}'")
-    sub.add_argument("--duration", type=_positive, default=None, help="stop after this many simulated seconds")
+    sub.add_argument("--duration", type=positive_number, default=None, help="stop after this many simulated seconds")
     sub.add_argument("--no-plots", action="store_true")
     sub.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
                      help="progress bar (default: when stderr is a terminal)")
@@ -183,16 +185,6 @@ def describe_alarms(events: list[dict[str, Any]], most: int = 6) -> str:
 
 
 # -- hil ---------------------------------------------------------------------------------------------
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not (value > 0.0 and value < float("inf")):
-        raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text!r}")
-    return value
-
-
 def _add_hil(commands: Any) -> None:
     sub = commands.add_parser(
         "hil", help="real-time emulator on real transports, for a separately started dpcontrol daemon",
@@ -204,10 +196,11 @@ def _add_hil(commands: Any) -> None:
                      help="the daemon's configuration file (dpcontrol run --config FILE)")
     sub.add_argument("--out", type=Path, metavar="DIR", help="write truth.csv, commands.csv, feedback.csv, "
                      "links.json and hil_summary.json here")
-    sub.add_argument("--speed", type=_positive, default=1.0, help="plant seconds per wall second (default 1)")
+    sub.add_argument("--speed", type=positive_number, default=1.0, help="plant seconds per wall second (default 1)")
     sub.add_argument("--engage", action="store_true",
                      help="request DP (auto_position) once the controller is alive and publishing status")
-    sub.add_argument("--duration", type=_positive, metavar="S", help="plant time to run [s] (default: the scenario's)")
+    sub.add_argument("--duration", type=positive_number, metavar="S",
+                     help="plant time to run [s] (default: the scenario's)")
     sub.add_argument("--zenoh-listen", action="append", metavar="ENDPOINT",
                      help="listen here (repeatable); default: derived from the controller configuration")
     sub.add_argument("--zenoh-connect", action="append", metavar="ENDPOINT",
@@ -307,7 +300,7 @@ def _add_demo(commands: Any) -> None:
                               "and zenoh, with a live view and a report")
     sub.add_argument("scenario", nargs="?", default="demo", help="scenario (default: the built-in demo, 120 s)")
     sub.add_argument("--out", type=Path, default=None, help="run directory (default: ./runs/demo-<time>)")
-    sub.add_argument("--duration", type=_positive, default=None, help="seconds (default: the scenario's)")
+    sub.add_argument("--duration", type=positive_number, default=None, help="seconds (default: the scenario's)")
     sub.add_argument("--live", action=argparse.BooleanOptionalAction, default=None,
                      help="live terminal view (default: when stdout is a terminal)")
     sub.set_defaults(handler=_cmd_demo)
@@ -349,9 +342,9 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 def _add_bench(commands: Any) -> None:
     sub = commands.add_parser("bench", help="simulation speed: simulated seconds per wall second")
     sub.add_argument("--json", action="store_true")
-    sub.add_argument("--tanker-duration", type=_positive, default=43200.0,
+    sub.add_argument("--tanker-duration", type=positive_number, default=43200.0,
                      help="simulated seconds of the seed 003 tanker run (default: the full 12 h)")
-    sub.add_argument("--cs2-duration", type=_positive, default=300.0)
+    sub.add_argument("--cs2-duration", type=positive_number, default=300.0)
     sub.set_defaults(handler=_cmd_bench)
 
 
