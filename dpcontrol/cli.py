@@ -35,11 +35,6 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from dpcontrol.runtime.daemon import Daemon  # noqa: PLC0415
 
     _configure_logging(args.verbose)
-    try:
-        config = load_config(args.config)
-    except ConfigError as error:
-        print(f"dpcontrol: invalid configuration: {error}", file=sys.stderr)
-        return 2
     if args.stats_out:  # checked before the run: the stats are written when it ends, maybe hours later
         from dpcontrol.outputs import unwritable_folder  # noqa: PLC0415
 
@@ -48,8 +43,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
             print(f"dpcontrol: --stats-out {args.stats_out}: {unwritable}", file=sys.stderr)
             return 2
     try:
-        daemon = Daemon(config)
-    except ConfigError as error:  # (the controller is built from the configuration here)
+        config = load_config(args.config)
+        daemon = Daemon(config)  # (builds the controller: settings that pass one by one but build nothing)
+    except ConfigError as error:
         print(f"dpcontrol: invalid configuration: {error}", file=sys.stderr)
         return 2
     code = daemon.run(duration_s=args.duration)

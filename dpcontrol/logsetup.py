@@ -16,6 +16,8 @@ from typing import TextIO
 #: syslog priorities (RFC 5424) of the logging levels
 SYSLOG_PRIORITIES = ((logging.CRITICAL, 2), (logging.ERROR, 3), (logging.WARNING, 4), (logging.INFO, 6))
 DEBUG_PRIORITY = 7
+#: libraries logged from WARNING up only, whatever the tools' level
+QUIET_LIBRARIES = ("matplotlib", "PIL", "numba")
 
 
 def syslog_priority(levelno: int) -> int:
@@ -63,3 +65,7 @@ def configure_logging(level: int, *, terminal_format: str = "%(asctime)s %(level
     else:
         handler.setFormatter(logging.Formatter(terminal_format))
     logging.basicConfig(level=level, handlers=[handler])
+    # Libraries' own progress notes are not the operator's business: matplotlib's "generated new
+    # fontManager" (the first plot on a fresh machine) ended the demo's output, between its results.
+    for library in QUIET_LIBRARIES:
+        logging.getLogger(library).setLevel(max(level, logging.WARNING))

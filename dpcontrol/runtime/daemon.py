@@ -57,6 +57,10 @@ from interfaces.zenoh.schemas import SetpointRequest
 log = logging.getLogger(__name__)
 
 TIMING_WINDOW = 2048
+# Inputs waiting for the loop: 12 s of a saturated 250 kbit/s NMEA 2000 bus (about 2000 frames/s, two
+# entries each), so nothing a sensor legitimately sends is ever dropped, while a flood on a UDP port
+# or a loop stalled until the watchdog restarts it cannot grow the daemon's memory without bound.
+MAX_PENDING_INPUTS = 50_000
 RUNTIME_TOPICS = (
     TopicSpec("cycle", "dpcontrol.cycle",
               "What one control step consumed: the raw-input sequence numbers of its measurements, link "
@@ -94,15 +98,23 @@ class InputPump:
     """Starts the transport readers; collects routed measurements, rejects and link changes.
 
     Everything arriving from reader threads goes through one deque (thread-safe appends); the loop
-    drains it once per cycle.
+    drains it once per cycle. At most ``max_pending`` measurements and frame counts wait in it: beyond
+    that, new ones are dropped and counted (:attr:`dropped`; the daemon raises ``inputs.overflow``),
+    link changes never are.
     """
 
-    def __init__(self, config: DaemonConfig, clock: Callable[[], float], recorder: Recorder | None = None) -> None:
+    def __init__(self, config: DaemonConfig, clock: Callable[[], float], recorder: Recorder | None = None,
+                 max_pending: int | None = None) -> None:
         self.config = config
         self.clock = clock
         self.router = SensorRouter(config.routes, config.transports)
         self.recorder = recorder
         self._queue: collections.deque[Any] = collections.deque()
+        self.max_pending = MAX_PENDING_INPUTS if max_pending is None else max_pending
+        # inputs dropped because the queue was full, since the start (written by reader threads under
+        # the lock: rare by construction, so the lock is off the normal path)
+        self.dropped = 0
+        self._dropped_lock = threading.Lock()
         self._readers: list[Any] = []
         # Every raw input gets a sequence number (recorded with it); each measurement carries the number
         # of the raw input it came from, and every cycle records which it consumed: replay is exact.
@@ -153,30 +165,38 @@ class InputPump:
                                 heartbeat_timeout_s=s["heartbeat_timeout_s"], deliver_raw=self.recorder is not None,
                                 namer=lambda sys_id, comp, msg: f"mav:{sys_id}/{comp}/{msg}").start()
 
+    def _put(self, item: tuple[Any, ...]) -> None:
+        """Queue a measurement or a frame count for the loop, unless ``max_pending`` already wait."""
+        if len(self._queue) < self.max_pending:
+            self._queue.append(item)
+            return
+        with self._dropped_lock:
+            self.dropped += 1
+
     def _nmea_line(self, transport: str, line: Any) -> None:
         frame = line.frame
         ok = frame.rejected is None
         seq = next(self._counter)
-        self._queue.append(("health", transport, line.t_s, None if ok else frame.rejected.reason))
+        self._put(("health", transport, line.t_s, None if ok else frame.rejected.reason))
         if self.recorder is not None:
             self.recorder.record_raw(transport, line.t_s, frame.raw, rejected=None if ok else frame.rejected.reason,
                                      sentence=frame.sentence or None, seq=seq)
         for message in frame.messages:
             sensor = self.router.nmea0183(transport, frame.sentence, message)
             if sensor is not None:
-                self._queue.append((seq, Measurement(line.t_s, sensor, message)))
+                self._put((seq, Measurement(line.t_s, sensor, message)))
 
     def _n2k_event(self, transport: str, event: Any) -> None:
         if isinstance(event, Measurement):
             match = self._n2k_pattern.match(event.source)
-            self._queue.append(("health", transport, event.t_s, None))
+            self._put(("health", transport, event.t_s, None))
             if match is not None:
                 sensor = self.router.nmea2000(transport, int(match.group(1)), event.message)
                 if sensor is not None:
                     seq = self._last_raw_seq.get(transport, 0)
-                    self._queue.append((seq, Measurement(event.t_s, sensor, event.message)))
+                    self._put((seq, Measurement(event.t_s, sensor, event.message)))
         elif isinstance(event, RejectedInput):
-            self._queue.append(("health", transport, event.t_s, event.rejected.reason))
+            self._put(("health", transport, event.t_s, event.rejected.reason))
             if self.recorder is not None:
                 self.recorder.record_raw(transport, event.t_s, event.rejected.raw, rejected=event.rejected.reason)
         elif isinstance(event, LinkStatus):
@@ -189,14 +209,14 @@ class InputPump:
     def _mav_event(self, transport: str, event: Any) -> None:
         if isinstance(event, Measurement):
             match = self._mav_pattern.match(event.source)
-            self._queue.append(("health", transport, event.t_s, None))
+            self._put(("health", transport, event.t_s, None))
             if match is not None:
                 sensor = self.router.mavlink(transport, int(match.group(1)), match.group(3), event.message)
                 if sensor is not None:
                     seq = self._last_raw_seq.get(transport, 0)
-                    self._queue.append((seq, Measurement(event.t_s, sensor, event.message)))
+                    self._put((seq, Measurement(event.t_s, sensor, event.message)))
         elif isinstance(event, RejectedInput):
-            self._queue.append(("health", transport, event.t_s, event.rejected.reason))
+            self._put(("health", transport, event.t_s, event.rejected.reason))
             if self.recorder is not None:
                 self.recorder.record_raw(transport, event.t_s, event.rejected.raw, rejected=event.rejected.reason)
         elif isinstance(event, LinkStatus):
@@ -233,6 +253,43 @@ class InputPump:
                 reader.close()
             except Exception:  # closing must go on for the others
                 log.exception("closing a transport reader failed")
+
+
+class StepErrorLog:
+    """Logs a failing control step without flooding the journal at the loop rate.
+
+    The first failure of a run of failures, and each failure whose error differs from the one before,
+    is logged with its traceback; the same error again is summarised once per ``repeat_s`` (s, loop
+    clock) with the count; the first good step after failures is logged too. (Under systemd the watchdog
+    restarts a daemon whose step keeps failing; run by hand it would otherwise log 10 tracebacks a second.)
+    """
+
+    def __init__(self, repeat_s: float = 10.0) -> None:
+        self.repeat_s = repeat_s
+        self._last_text: str | None = None
+        self._last_logged_t = -math.inf
+        self._unlogged = 0
+
+    def failed(self, t_s: float, error: BaseException, in_a_row: int) -> None:
+        text = f"{type(error).__name__}: {error}"
+        if text != self._last_text:
+            self._last_text = text
+            self._last_logged_t = t_s
+            self._unlogged = 0
+            log.error("control step failed (%d in a row)", in_a_row, exc_info=error)
+        elif t_s - self._last_logged_t >= self.repeat_s:
+            self._last_logged_t = t_s
+            log.error("control step still failing (%d in a row, %d since the last report): %s",
+                      in_a_row, self._unlogged + 1, text)
+            self._unlogged = 0
+        else:
+            self._unlogged += 1
+
+    def recovered(self, failures: int) -> None:
+        log.warning("control step recovered after %d failed cycles (last error: %s)", failures, self._last_text)
+        self._last_text = None
+        self._last_logged_t = -math.inf
+        self._unlogged = 0
 
 
 @dataclass
@@ -339,6 +396,8 @@ class Daemon:
         self.state_detail = ""
         self._setpoints_rejected = 0
         self._setpoint_rejected_t = -math.inf
+        self._inputs_dropped = 0
+        self._inputs_dropped_t = -math.inf
 
     @property
     def resumed_from_state(self) -> bool:
@@ -440,6 +499,7 @@ class Daemon:
         measurements: list[Measurement] = []
         links: list[LinkStatus] = []
         consecutive_errors = 0
+        step_errors = StepErrorLog()
         watchdog_interval = self.notifier.watchdog_interval_s()
         replica = self.replica
         lead = self.config.replica.lead_s
@@ -468,11 +528,13 @@ class Daemon:
             links.clear()
             try:
                 out, published = self._cycle(start, measurements, links)
+                if consecutive_errors:
+                    step_errors.recovered(consecutive_errors)
                 consecutive_errors = 0
-            except Exception:
+            except Exception as error:
                 self.stats.step_errors += 1
                 consecutive_errors += 1
-                log.exception("control step failed (%d in a row)", consecutive_errors)
+                step_errors.failed(start, error, consecutive_errors)
                 self.alarms.raise_(start, "controller.internal_error", Severity.CRITICAL,
                                    "control step raised; commanding zero thrust")
                 self._publish_zero(start)
@@ -535,6 +597,7 @@ class Daemon:
         assert self.pump is not None and self.node is not None
         sources: list[int] = []
         self.pump.drain(measurements, links, sources)
+        self._check_overflow(t_s)
         self.pump.health.apply_links(t_s, links, self.controller.hub, self.alarms)
         requests = [received.message for received in self._setpoints.sink.drain()]
         rejected = self._setpoints.stats
@@ -670,6 +733,20 @@ class Daemon:
                                f"black-box recorder: {error.message if error is not None else recorder.health.state}")
         else:
             self.alarms.clear(t_s, "recorder.error")
+
+    def _check_overflow(self, t_s: float) -> None:
+        """``inputs.overflow`` while reader threads drop inputs (a full queue), cleared 10 s after the last."""
+        assert self.pump is not None
+        dropped = self.pump.dropped
+        if dropped != self._inputs_dropped:
+            self._inputs_dropped = dropped
+            self._inputs_dropped_t = t_s
+            self.alarms.raise_(t_s, "inputs.overflow", Severity.WARNING,
+                               f"{dropped} sensor inputs dropped since the start: more than "
+                               f"{self.pump.max_pending} were waiting for the control loop (an input flood, "
+                               f"or a stalled loop)")
+        elif t_s - self._inputs_dropped_t > 10.0:
+            self.alarms.clear(t_s, "inputs.overflow")
 
     def _persist(self, t_s: float) -> None:
         saver = self.saver

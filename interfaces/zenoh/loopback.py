@@ -25,6 +25,13 @@ def free_tcp_port(host: str = LOOPBACK) -> int:
         return int(sock.getsockname()[1])
 
 
+def free_udp_port(host: str = LOOPBACK) -> int:
+    """A UDP port that was free on ``host`` a moment ago (racy like :func:`free_tcp_port`)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.bind((host, 0))
+        return int(sock.getsockname()[1])
+
+
 def loopback_endpoint(port: int) -> str:
     """``tcp/127.0.0.1:<port>``."""
     return f"tcp/{LOOPBACK}:{port}"

@@ -41,7 +41,7 @@ import yaml
 from dpcontrol.models.schema import ConfigError
 from dpcontrol.platform_info import cpu_times, describe_steal, host_steal
 from dpcontrol.yamlfile import read_yaml_file
-from interfaces.zenoh.loopback import free_tcp_port
+from interfaces.zenoh.loopback import free_tcp_port, free_udp_port
 
 DEMO_SENSORS = [
     {"name": "gnss1", "kind": "gnss", "protocol": "nmea0183", "rate_hz": 10},
@@ -61,12 +61,6 @@ STOP_MARGIN_S = 30.0
 
 class DemoError(RuntimeError):
     """The demo could not run (a process failed to start, a port could not be found ...)."""
-
-
-def _free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
 
 
 class _NotifyListener:
@@ -129,7 +123,7 @@ def prepare(scenario_path: Path, run_dir: Path, *, realtime: bool = False) -> tu
     if not {"nmea0183", "nmea2000", "mavlink"} <= protocols:
         scenario["sensors"] = DEMO_SENSORS  # the demo shows every transport
     short = Path(tempfile.mkdtemp(prefix="dp-demo-"))  # pty symlinks and sockets: short paths
-    zenoh_port, can_port, mav_port = free_tcp_port(), free_tcp_port(), _free_udp_port()
+    zenoh_port, can_port, mav_port = free_tcp_port(), free_tcp_port(), free_udp_port()
     plant_zenoh_port = free_tcp_port()
     controller = dict(scenario.get("controller") or {})
     transports = [

@@ -75,3 +75,17 @@ zenoh: {{listen: ["tcp/127.0.0.1:0"]}}
         assert all(line[:3] in ("<2>", "<3>", "<4>", "<6>", "<7>") for line in lines), lines
     else:
         assert link[0][:4].isdigit() and " WARNING dpcontrol.runtime.daemon: alarm raised" in link[0], link
+
+
+def test_a_fresh_machines_font_cache_note_stays_out_of_the_tools_output(tmp_path: Path) -> None:
+    """matplotlib logs "generated new fontManager" at INFO on the first plot of a fresh machine; it
+    printed itself among the demo's results. An empty MPLCONFIGDIR is such a machine."""
+    code = ("import logging; from dpcontrol.logsetup import configure_logging; configure_logging(logging.INFO); "
+            "import matplotlib; matplotlib.use('Agg'); import matplotlib.pyplot as plt; plt.figure(); "
+            "logging.getLogger('dpcontrol.test').info('own line')")
+    environ = {**os.environ, "MPLCONFIGDIR": str(tmp_path / "mpl"), "JOURNAL_STREAM": ""}
+    done = subprocess.run([sys.executable, "-c", code], env=environ, capture_output=True, text=True, timeout=120,
+                          check=True)
+    assert "own line" in done.stderr
+    assert "fontManager" not in done.stderr and "matplotlib" not in done.stderr, done.stderr
+    assert (tmp_path / "mpl").is_dir()  # the cache was built in the run (the case it checks)
