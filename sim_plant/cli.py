@@ -31,6 +31,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 EXIT_OK, EXIT_FAILURE, EXIT_USAGE = 0, 1, 2
+EXIT_INTERRUPTED = 130  # as a shell reports a command ended by Ctrl-C (128 + SIGINT)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -263,7 +264,8 @@ def _cmd_hil(args: argparse.Namespace) -> int:
     def _on_signal(signum: int, _frame: FrameType | None) -> None:
         emulator.stop_from_signal(f"signal {signal.Signals(signum).name}")
 
-    previous = {sig: signal.signal(sig, _on_signal) for sig in (signal.SIGTERM, signal.SIGINT)}
+    # SIGHUP too (the terminal that started the bench went away): an orderly stop, as for SIGTERM
+    previous = {sig: signal.signal(sig, _on_signal) for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP)}
     try:
         try:
             emulator.open()
@@ -330,12 +332,18 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     except DemoError as error:
         print(f"sim-plant demo: {error}", file=sys.stderr)
         return EXIT_FAILURE
+    except KeyboardInterrupt:  # (SIGINT, SIGTERM or SIGHUP before the run started: what started is stopped)
+        print("sim-plant demo: interrupted before the run started; no report", file=sys.stderr)
+        return EXIT_INTERRUPTED
     summary_file = report / "summary.json"
+    interrupted = None
     if summary_file.exists():
-        for line in describe_summary(json.loads(summary_file.read_text(encoding="utf-8"))):
+        summary = json.loads(summary_file.read_text(encoding="utf-8"))
+        interrupted = summary.get("interrupted_by")
+        for line in describe_summary(summary):
             print(f"sim-plant demo: {line}")
     print(f"sim-plant demo: report in {report}")
-    return EXIT_OK
+    return EXIT_OK if interrupted is None else EXIT_INTERRUPTED
 
 
 # -- bench -------------------------------------------------------------------------------------------

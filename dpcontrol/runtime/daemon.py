@@ -398,6 +398,7 @@ class Daemon:
         self._setpoint_rejected_t = -math.inf
         self._inputs_dropped = 0
         self._inputs_dropped_t = -math.inf
+        self.stopped_by: str | None = None
 
     @property
     def resumed_from_state(self) -> bool:
@@ -405,8 +406,10 @@ class Daemon:
         return self._resumed_state is not None
 
     # ---------------------------------------------------------------- life cycle
-    def request_stop(self, *_: Any) -> None:
-        """Ask the loop to stop after the current cycle (signal handler)."""
+    def request_stop(self, signum: int | None = None, _frame: Any = None) -> None:
+        """Ask the loop to stop after the current cycle (signal handler; ``signum`` is logged at the stop)."""
+        if signum is not None and self.stopped_by is None:
+            self.stopped_by = signal.Signals(signum).name  # (logged by the loop: no logging in a handler)
         self._stop.set()
 
     def _open(self) -> None:
@@ -470,10 +473,15 @@ class Daemon:
             self._resumed_state = None
 
     def run(self, duration_s: float | None = None, install_signals: bool = True) -> int:
-        """Run until SIGTERM/SIGINT (or ``duration_s``); returns the exit code (0 on a clean stop)."""
+        """Run until SIGTERM, SIGINT or SIGHUP (or ``duration_s``); returns the exit code (0 on a clean stop).
+
+        SIGHUP stops like SIGTERM: its default action would end the process at once, with no zero-thrust
+        command, when the terminal or SSH session that started ``dpcontrol run`` by hand goes away. (It does
+        not reload the configuration: a DP controller's settings do not change under a vessel in DP.)
+        """
         if install_signals:
-            signal.signal(signal.SIGTERM, self.request_stop)
-            signal.signal(signal.SIGINT, self.request_stop)
+            for stop_signal in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
+                signal.signal(stop_signal, self.request_stop)
         try:
             self._open()
         except Exception as error:
@@ -776,6 +784,8 @@ class Daemon:
         self.controller.request_mode(Mode.STANDBY)
         self.controller.mode = Mode.STANDBY
         self._publish_zero(t_s)  # the last command: zero thrust
+        log.info("stopping (%s): zero thrust commanded, mode standby",
+                 self.stopped_by or ("end of --duration" if not self._stop.is_set() else "stop requested"))
         if "status" in self._publishers:
             self._publishers["status"].put(self._status_payload(t_s, self._seq))
         if self.saver is not None:

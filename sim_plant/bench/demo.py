@@ -17,6 +17,11 @@ The demo is the hardware-in-the-loop bench on one machine:
    recording and its loop timing, and the share of the CPUs the hypervisor took meanwhile (``host_steal``:
    0 on dedicated hardware; on a virtual machine, time in which both processes stood still) — is written
    to ``<run>/report``, and ``sim-plant demo`` prints its outcome (:func:`describe_summary`).
+
+Ctrl-C (SIGINT), SIGTERM or SIGHUP during the run ends it early the same way — the daemon stopped first,
+then the emulator, and a report of what ran (``summary.json``'s ``interrupted_by`` names the signal); before
+the run has started they stop whatever was started, daemon first. The processes run in sessions of their
+own, so a demo that died without stopping them would leave them running.
 """
 
 from __future__ import annotations
@@ -31,6 +36,7 @@ import socket
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -202,9 +208,43 @@ def _stop(process: subprocess.Popen[bytes], timeout_s: float = 15.0) -> int | No
     return process.returncode
 
 
+class _StopSignals:
+    """While active (main thread only), SIGINT, SIGTERM and SIGHUP raise KeyboardInterrupt in the main
+    thread and are remembered: the demo then ends early in order instead of dying with its processes left
+    running (SIGTERM's and SIGHUP's default actions skip every ``finally``)."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+    def __init__(self) -> None:
+        self.received: str | None = None
+        self._previous: dict[int, Any] = {}
+
+    def _on_signal(self, signum: int, _frame: Any) -> None:
+        if self.received is None:
+            self.received = signal.Signals(signum).name
+        raise KeyboardInterrupt
+
+    def install(self) -> None:
+        if threading.current_thread() is threading.main_thread():  # (signal.signal works there only)
+            self._previous = {sig: signal.signal(sig, self._on_signal) for sig in self.SIGNALS}
+
+    def restore(self) -> None:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+        self._previous = {}
+
+
 def run_demo(scenario_path: Path, run_dir: Path | None = None, *, duration_s: float | None = None,
              live: bool | None = None, quiet: bool = False) -> Path:
-    """Run the demo (see the module docstring); returns the report directory."""
+    """Run the demo (see the module docstring); returns the report directory.
+
+    Raises
+    ------
+    DemoError
+        A process did not start.
+    KeyboardInterrupt
+        Interrupted (SIGINT, SIGTERM, SIGHUP) before the run started; whatever had started is stopped.
+    """
     stamp = time.strftime("%Y%m%d-%H%M%S", time.gmtime())
     run_dir = run_dir or Path("runs") / f"demo-{stamp}"
     run_dir.mkdir(parents=True, exist_ok=True)
@@ -216,7 +256,9 @@ def run_demo(scenario_path: Path, run_dir: Path | None = None, *, duration_s: fl
     daemon_notify = _NotifyListener(short, "daemon")
     python = sys.executable
     emulator = daemon = None
+    stop_signals = _StopSignals()
     try:
+        stop_signals.install()
         say(f"run directory {run_dir}")
         emulator = _spawn(emulator_command(scenario_file, config_file, wiring, run_dir / "plant",
                                            duration + STOP_MARGIN_S),
@@ -234,28 +276,39 @@ def run_demo(scenario_path: Path, run_dir: Path | None = None, *, duration_s: fl
             f"--connect {wiring['zenoh']})")
         remaining = duration - (time.monotonic() - plant_start)
         show_live = sys.stdout.isatty() if live is None else live
-        if show_live and remaining > 1.0:
-            from dpcontrol.monitor import run_monitor  # noqa: PLC0415
+        try:
+            if show_live and remaining > 1.0:
+                from dpcontrol.monitor import run_monitor  # noqa: PLC0415
 
-            run_monitor(wiring["vessel_id"], (wiring["zenoh"], wiring["zenoh_plant"]), duration_s=remaining)
-        else:
-            end = plant_start + duration
-            while time.monotonic() < end:
-                if emulator.poll() is not None or daemon.poll() is not None:
-                    break
-                time.sleep(min(10.0, max(0.0, end - time.monotonic())))
-                say(f"t = {time.monotonic() - plant_start:5.0f} s of {duration:g} s")
+                # (it returns on KeyboardInterrupt, which the stop signals raise)
+                run_monitor(wiring["vessel_id"], (wiring["zenoh"], wiring["zenoh_plant"]), duration_s=remaining)
+            else:
+                end = plant_start + duration
+                while time.monotonic() < end:
+                    if emulator.poll() is not None or daemon.poll() is not None:
+                        break
+                    time.sleep(min(10.0, max(0.0, end - time.monotonic())))
+                    say(f"t = {time.monotonic() - plant_start:5.0f} s of {duration:g} s")
+        except KeyboardInterrupt:
+            stop_signals.received = stop_signals.received or "SIGINT"
+        stop_signals.restore()  # a second Ctrl-C while stopping: the finally below stops what is left
+        interrupted = stop_signals.received
+        if interrupted is not None:
+            say(f"{interrupted} at t = {time.monotonic() - plant_start:.0f} s of {duration:g} s: stopping dpcontrol, "
+                "then the emulator; the report covers what ran")
         daemon_code = _stop(daemon)  # first: its last command is zero thrust, which the plant still receives
         steal = host_steal(ticks, cpu_times())
         time.sleep(0.5)  # the command's way over Zenoh to the emulator (published before the daemon exits)
         plant_code = _stop(emulator)
         say(f"stopped: dpcontrol exit {daemon_code}, sim-plant exit {plant_code}")
-        report_dir = write_report(run_dir, wiring, daemon_code=daemon_code, plant_code=plant_code, host_steal=steal)
+        report_dir = write_report(run_dir, wiring, daemon_code=daemon_code, plant_code=plant_code, host_steal=steal,
+                                  interrupted_by=interrupted)
         return report_dir
     finally:
-        for process in (daemon, emulator):
+        stop_signals.restore()
+        for process in (daemon, emulator):  # the daemon first: its last command is zero thrust
             if process is not None and process.poll() is None:
-                process.kill()
+                _stop(process, timeout_s=5.0)
         plant_notify.close()
         daemon_notify.close()
         shutil.rmtree(short, ignore_errors=True)
@@ -275,6 +328,8 @@ def describe_summary(summary: dict[str, Any]) -> list[str]:
     (a process that died early) is said to be missing rather than guessed.
     """
     lines: list[str] = []
+    if summary.get("interrupted_by"):
+        lines.append(f"ended early by {summary['interrupted_by']}: what follows covers the part that ran")
     engage = (summary.get("sim_plant") or {}).get("engage") or {}
     if summary.get("dp_engaged"):
         when = engage.get("t_s")
@@ -344,9 +399,11 @@ def _read_csv(path: Path) -> dict[str, np.ndarray]:
 
 
 def write_report(run_dir: Path, wiring: dict[str, Any], *, daemon_code: int | None,
-                 plant_code: int | None, host_steal: dict[str, float] | None = None) -> Path:
+                 plant_code: int | None, host_steal: dict[str, float] | None = None,
+                 interrupted_by: str | None = None) -> Path:
     """Plots and ``summary.json`` of a demo run (see the module docstring); ``host_steal`` is
-    :func:`~dpcontrol.platform_info.host_steal` over the daemon's run (None: not measured)."""
+    :func:`~dpcontrol.platform_info.host_steal` over the daemon's run (None: not measured);
+    ``interrupted_by`` the signal that ended the run early (None: it ran its duration)."""
     from dpcontrol.logtools import read_records  # noqa: PLC0415
 
     report = run_dir / "report"
@@ -355,7 +412,7 @@ def write_report(run_dir: Path, wiring: dict[str, Any], *, daemon_code: int | No
     commands = _read_csv(run_dir / "plant" / "commands.csv")
     scenario = yaml.safe_load((run_dir / "scenario.yaml").read_text(encoding="utf-8"))
     summary: dict[str, Any] = {"run_dir": str(run_dir), "dpcontrol_exit": daemon_code, "sim_plant_exit": plant_code,
-                               "host_steal": host_steal}
+                               "host_steal": host_steal, "interrupted_by": interrupted_by}
     stats_file = run_dir / "dpcontrol-stats.json"
     if stats_file.exists():
         summary["dpcontrol_loop"] = json.loads(stats_file.read_text(encoding="utf-8"))
@@ -403,9 +460,11 @@ def write_report(run_dir: Path, wiring: dict[str, Any], *, daemon_code: int | No
             summary["position_error_last_half_rms_m"] = round(float(np.sqrt(np.nanmean(error[settled] ** 2))), 4)
             summary["position_error_window_s"] = [round(half_s, 2), round(float(t[-1]), 2)]  # scenario time
         summary["final_position_m"] = [round(float(truth["north_m"][-1]), 4), round(float(truth["east_m"][-1]), 4)]
-        summary["final_setpoint_m"] = [None if not setpoints else setpoints[-1].get("north_m"),
-                                       None if not setpoints else setpoints[-1].get("east_m")]
-        summary["final_setpoint_t_s"] = None if not setpoints else float(setpoints[-1]["t_s"])
+        # the last set-point in force at the end: a run cut short (--duration, Ctrl-C) never saw the later ones
+        in_force = [sp for sp in setpoints if sp["t_s"] <= t[-1]]
+        summary["final_setpoint_m"] = [None if not in_force else in_force[-1].get("north_m"),
+                                       None if not in_force else in_force[-1].get("east_m")]
+        summary["final_setpoint_t_s"] = None if not in_force else float(in_force[-1]["t_s"])
     if commands:
         text = commands["_text"]
         header = commands["_header"]

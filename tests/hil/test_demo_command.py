@@ -9,8 +9,10 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -46,3 +48,74 @@ def test_the_demo_command_runs_and_reports(tmp_path: Path) -> None:
     assert DURATION_S / 2 < change_s < DURATION_S
     assert any(f"includes the move to the set-point of t = {change_s:g} s" in line for line in lines), lines
     assert sorted(p.suffix for p in (out / "report").iterdir()).count(".png") >= 1
+
+
+def _processes_mentioning(text: str) -> list[int]:
+    """PIDs whose command line contains ``text`` (the run directory is in both children's)."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                command = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+            except OSError:  # gone meanwhile
+                continue
+            if text in command and entry.name != str(os.getpid()):
+                found.append(int(entry.name))
+    return found
+
+
+@pytest.mark.skipif(not Path("/proc/self/cmdline").exists(), reason="reads /proc")
+def test_ctrl_c_ends_the_demo_early_in_order_with_a_report(tmp_path: Path) -> None:
+    """Ctrl-C used to kill both processes (no zero-thrust command, no report), and SIGTERM or SIGHUP (a
+    closed terminal) ended the demo with its two processes, in sessions of their own, still running."""
+    out = tmp_path / "demo"
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
+    process = subprocess.Popen([sys.executable, "-m", "sim_plant.cli", "demo", "--duration", "200", "--no-live",
+                                "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        assert process.stdout is not None
+        for line in process.stdout:  # "… dpcontrol ready; running …": both processes up
+            if "dpcontrol ready" in line:
+                break
+        else:
+            pytest.fail("the demo ended before dpcontrol was ready: " + process.stderr.read()[-3000:])
+        children = [pid for pid in _processes_mentioning(str(out)) if pid != process.pid]
+        assert len(children) == 2, children  # the emulator and the daemon
+        time.sleep(4.0)
+        process.send_signal(signal.SIGINT)
+        rest, stderr = process.communicate(timeout=TIMEOUT_S)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.communicate(timeout=30.0)
+    lines = [line.removeprefix("sim-plant demo: ") for line in rest.splitlines()]
+    assert process.returncode == 130, rest[-3000:] + stderr[-3000:]
+    assert any(line.startswith("SIGINT at t = ") for line in lines), lines
+    assert "stopped: dpcontrol exit 0, sim-plant exit 0" in lines, lines
+    assert "ended early by SIGINT: what follows covers the part that ran" in lines, lines
+    assert "last command: zero thrust, mode standby" in lines, lines
+    summary = json.loads((out / "report" / "summary.json").read_text(encoding="utf-8"))
+    assert summary["interrupted_by"] == "SIGINT" and summary["zero_thrust_commanded_last"]
+    assert summary["dpcontrol_loop"]["cycles"] < 100 * 10  # stopped long before its 200 s
+    # the set-point reported is the one in force when it stopped, not the scenario's last
+    assert summary["final_setpoint_t_s"] <= summary["position_error_window_s"][1]
+    assert _processes_mentioning(str(out)) == []
+
+
+@pytest.mark.parametrize("stop_signal", [signal.SIGTERM, signal.SIGHUP], ids=["SIGTERM", "SIGHUP"])
+def test_termination_signals_interrupt_the_demo_like_ctrl_c(stop_signal: signal.Signals) -> None:
+    """The demo's handler (in this process, as in the demo's main thread): the signal becomes a
+    KeyboardInterrupt and is named, and the previous handlers come back."""
+    from sim_plant.bench.demo import _StopSignals  # noqa: PLC0415
+
+    before = signal.getsignal(stop_signal)
+    signals = _StopSignals()
+    signals.install()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            os.kill(os.getpid(), stop_signal)
+            time.sleep(1.0)  # (delivered at the next bytecode boundary of the main thread)
+    finally:
+        signals.restore()
+    assert signals.received == stop_signal.name
+    assert signal.getsignal(stop_signal) is before

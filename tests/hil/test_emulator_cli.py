@@ -102,7 +102,10 @@ def _receive(sock: socket.socket, wanted: bytes, deadline: float) -> list[bytes]
 
 
 @pytest.mark.skipif(os.name != "posix", reason="systemd notification and signals")
-def test_hil_process_notifies_systemd_and_stops_cleanly_on_sigterm(tmp_path: Path, rig: Any) -> None:
+@pytest.mark.parametrize("stop_signal", [signal.SIGTERM, signal.SIGHUP], ids=["SIGTERM", "SIGHUP"])
+def test_hil_process_notifies_systemd_and_stops_cleanly_on_sigterm(tmp_path: Path, rig: Any,
+                                                                  stop_signal: signal.Signals) -> None:
+    """SIGHUP (the terminal that started the bench went away) stops it as SIGTERM does."""
     scenario, controller, port = _files(tmp_path, rig)
     out = tmp_path / "out"
     notify_path = tmp_path / "notify.sock"
@@ -121,7 +124,7 @@ def test_hil_process_notifies_systemd_and_stops_cleanly_on_sigterm(tmp_path: Pat
             watchdog = _receive(sock, b"WATCHDOG=1", time.monotonic() + 5.0)
             watchdog += _receive(sock, b"WATCHDOG=1", time.monotonic() + 5.0)
             assert sum(b"WATCHDOG=1" in m for m in watchdog) >= 2
-            process.send_signal(signal.SIGTERM)
+            process.send_signal(stop_signal)
             stdout, stderr = process.communicate(timeout=30.0)
             stopping = _receive(sock, b"STOPPING=1", time.monotonic() + 5.0)
         finally:
@@ -132,7 +135,7 @@ def test_hil_process_notifies_systemd_and_stops_cleanly_on_sigterm(tmp_path: Pat
     assert any(b"STOPPING=1" in m for m in stopping)
     assert b"gnss1 (gnss, 5 Hz) -> nmea0183 serial0 " + str(port).encode() in stdout
     summary = json.loads((out / "hil_summary.json").read_text())
-    assert summary["stopped_by"] == "signal SIGTERM"
+    assert summary["stopped_by"] == f"signal {stop_signal.name}"
     assert 0.0 < summary["duration_s"] < 600.0
     assert (out / "truth.csv").exists() and not port.exists()
 
