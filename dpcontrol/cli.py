@@ -1,7 +1,7 @@
 """``dpcontrol`` command line (composition layer): run, check-config, monitor, bench, decode, replay, log.
 
 Exit codes: 0 success; 1 runtime failure; 2 invalid usage or configuration (the message names the
-file, the key path and what was expected).
+file, the key path and what was expected); 130 interrupted (Ctrl-C; ``run`` stops in order on it instead).
 """
 
 from __future__ import annotations
@@ -22,6 +22,8 @@ from pathlib import Path
 
 from dpcontrol.arguments import positive_number
 from dpcontrol.models.schema import ConfigError
+
+EXIT_INTERRUPTED = 130  # as a shell reports a command ended by Ctrl-C (128 + SIGINT)
 
 
 def _configure_logging(verbose: bool) -> None:
@@ -233,7 +235,11 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``dpcontrol`` console script."""
     args = build_parser().parse_args(argv)
-    return int(args.func(args))
+    try:
+        return int(args.func(args))
+    except KeyboardInterrupt:  # Ctrl-C in bench, replay, log export …: one line, not a traceback
+        print(f"dpcontrol {args.command}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":

@@ -7,9 +7,10 @@
 * ``sim-plant demo``: emulator + daemon as two processes over all four transports, live view, report.
 * ``sim-plant bench [--json]``: simulation speed (seed 003 12 h, seed 000).
 
-Exit status: 0 after a clean end (duration reached, SIGTERM or SIGINT), 1 when the emulator fails
-at run time (a link that cannot be opened, an error in the loop), 2 for a usage or configuration
-error (the message names the file and key).
+Exit status: 0 after a clean end (``hil``: duration reached, SIGTERM, SIGINT or SIGHUP), 1 when the
+emulator fails at run time (a link that cannot be opened, an error in the loop), 2 for a usage or
+configuration error (the message names the file and key), 130 when ``run``, ``demo`` or ``bench`` were
+interrupted (Ctrl-C; ``run`` and ``demo`` still write what ran).
 """
 
 from __future__ import annotations
@@ -60,12 +61,11 @@ def main(argv: list[str] | None = None) -> int:
     from dpcontrol.logsetup import configure_logging  # noqa: PLC0415 - after the environment above
 
     configure_logging(level, terminal_format="%(asctime)s %(name)s %(levelname)s %(message)s")
-    return int(args.handler(args))
-
-
-def _not_yet(name: str) -> int:
-    print(f"sim-plant {name}: not yet implemented", file=sys.stderr)
-    return EXIT_USAGE
+    try:
+        return int(args.handler(args))
+    except KeyboardInterrupt:  # Ctrl-C where a command has nothing to save: one line, not a traceback
+        print(f"sim-plant {args.command}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
 
 
 # -- run ---------------------------------------------------------------------------------------------
@@ -139,6 +139,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
         return EXIT_FAILURE
     summary = outputs.summary
     metrics = summary.get("metrics", {})
+    interrupted = summary.get("interrupted_at_s")
+    if interrupted is not None:
+        print(f"sim-plant run: interrupted at t = {interrupted:g} s of {args.duration or scenario.duration_s:g} s; "
+              "the outputs cover the part that ran")
     print(f"sim-plant run: {scenario.name}: {summary['steps']} steps of {summary['sample_time_s']} s in "
           f"{summary['wall_time_s']} s ({summary['speed_x_realtime']}x real time)")
     for key in ("position_error_rms_m", "position_error_max_m", "heading_error_rms_deg", "omega_hat_final_rad_s",
@@ -148,7 +152,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     print(f"  alarms: {describe_alarms(summary.get('alarm_events') or [])}")
     print(f"sim-plant run: wrote {outputs.timeseries}, {outputs.summary_path} and {len(outputs.plots)} plots "
           f"in {outputs.out_dir}")
-    return EXIT_OK
+    return EXIT_OK if interrupted is None else EXIT_INTERRUPTED
 
 
 def describe_alarms(events: list[dict[str, Any]], most: int = 6) -> str:

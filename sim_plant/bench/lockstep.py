@@ -136,6 +136,9 @@ class RunResult:
         Every raise and clear during the run, in order (what the daemon records on its ``alarm`` topic).
     mode_changes : list of tuple
         ``(t_s, from, to, reason)`` of every mode change.
+    interrupted_at_s : float or None
+        Simulated time [s] of the step a Ctrl-C interrupted (``run(interruptible=True)``): the result then
+        holds the steps before it. None: the run reached its end.
     counters : dict
         ``decode_rejects`` (all rejected frames), ``unrouted``, ``transports`` (per-transport decoded /
         malformed / flagged-invalid counts and reasons) and ``protocol_faults`` (what was carried out).
@@ -151,6 +154,7 @@ class RunResult:
     mode_changes: list[tuple[float, str, str, str]] = field(default_factory=list)
     counters: dict[str, Any] = field(default_factory=dict)
     alarm_events: list[AlarmEvent] = field(default_factory=list)
+    interrupted_at_s: float | None = None
 
 
 class _SensorPath(NamedTuple):
@@ -722,7 +726,8 @@ class LockstepSimulation:
             self.config.estimator.kind == "mmae" else ()
 
     def run(self, progress: Callable[[float, float], None] | None = None, duration_s: float | None = None, *,
-            observer: Callable[[float, StepOutput], None] | None = None, timeseries: bool = True) -> RunResult:
+            observer: Callable[[float, StepOutput], None] | None = None, timeseries: bool = True,
+            interruptible: bool = False) -> RunResult:
         """Run to the scenario's end (or ``duration_s``); returns the preallocated time series.
 
         Parameters
@@ -737,6 +742,9 @@ class LockstepSimulation:
         timeseries : bool
             Keep one row per step (default). False keeps a single reused row (long runs: constant memory);
             the result then has no rows.
+        interruptible : bool
+            A KeyboardInterrupt (Ctrl-C) ends the run early with the steps completed so far
+            (:attr:`RunResult.interrupted_at_s`) instead of propagating (default: it propagates).
         """
         scenario = self.scenario
         dt = self.config.sample_time_s
@@ -766,57 +774,66 @@ class LockstepSimulation:
         n_names = len(names)
         wall0 = time.perf_counter()
         report_every = max(1, steps // 200)
-        for k in range(steps):
-            t = k * dt
-            plant.advance(t)
-            measurements.clear()
-            inputs.links.clear()
-            if inputs.actions:
-                inputs.apply_faults(t, 0)  # unplug / replug / heartbeat silence before the samples
-            if inputs._monitors:  # (heartbeats, expiries and link changes exist on some transports only)
-                inputs.heartbeats(t)
-            inputs.measurements(plant.sensor_samples(t), measurements)
-            if inputs.actions:
-                inputs.apply_faults(t, 1)  # malformed bursts after them
-            if inputs.n2k:
-                inputs.expire(t)
-            if inputs.links:
-                inputs.health.apply_links(t, inputs.links, hub, alarms)
-            # the controller's feedback objects straight from the drives' lists (no plant-side feedback object
-            # per drive in between: six fewer dataclass builds per step)
-            feedback = list(map(ThrusterFeedback, drive_names, *plant.feedback_values(), repeat(t)))
-            requests: list[SetpointRequest] = []
-            while next_setpoint < len(setpoints) and setpoints[next_setpoint].t_s <= t + 1e-9:
-                sp = setpoints[next_setpoint]
-                requests.append(SetpointRequest(t_s=t, seq=next_setpoint, north_m=sp.north_m, east_m=sp.east_m,
-                                                heading_rad=sp.heading_rad))
-                next_setpoint += 1
-            out = controller.step(t, measurements, feedback, requests)
-            inputs.health.update_alarms(t, alarms)
-            alarm_events.extend(alarms.drain_events())
-            for change in out.mode_changes:
-                mode_changes.append((t, *change))
-            # the controller's arrays straight into the drives (one kernel call; Plant.command_arrays applies
-            # what Plant.command would with a ThrusterCommand per drive, and rejects the same)
-            plant.command_arrays(t, drive_order, out.thrust_n, out.azimuth_rad, out.enabled)
-            row = self._record(out, n_models, n_names)
-            try:  # the float64s of the row packed into its bytes: a third cheaper than numpy's row assignment
-                pack_row(data, row_bytes * k if timeseries else 0, *row)
-            except struct.error:  # a value struct cannot pack as a double: numpy converts it (or says why not)
-                data[k if timeseries else 0] = row
-            if observer is not None:
-                observer(t, out)
-            if progress is not None and k % report_every == 0:
-                progress(t, duration)
+        interrupted_at = None
+        k = 0
+        try:  # (no cost per step: Python's exceptions are free until raised)
+            for k in range(steps):
+                t = k * dt
+                plant.advance(t)
+                measurements.clear()
+                inputs.links.clear()
+                if inputs.actions:
+                    inputs.apply_faults(t, 0)  # unplug / replug / heartbeat silence before the samples
+                if inputs._monitors:  # (heartbeats, expiries and link changes exist on some transports only)
+                    inputs.heartbeats(t)
+                inputs.measurements(plant.sensor_samples(t), measurements)
+                if inputs.actions:
+                    inputs.apply_faults(t, 1)  # malformed bursts after them
+                if inputs.n2k:
+                    inputs.expire(t)
+                if inputs.links:
+                    inputs.health.apply_links(t, inputs.links, hub, alarms)
+                # the controller's feedback objects straight from the drives' lists (no plant-side feedback object
+                # per drive in between: six fewer dataclass builds per step)
+                feedback = list(map(ThrusterFeedback, drive_names, *plant.feedback_values(), repeat(t)))
+                requests: list[SetpointRequest] = []
+                while next_setpoint < len(setpoints) and setpoints[next_setpoint].t_s <= t + 1e-9:
+                    sp = setpoints[next_setpoint]
+                    requests.append(SetpointRequest(t_s=t, seq=next_setpoint, north_m=sp.north_m, east_m=sp.east_m,
+                                                    heading_rad=sp.heading_rad))
+                    next_setpoint += 1
+                out = controller.step(t, measurements, feedback, requests)
+                inputs.health.update_alarms(t, alarms)
+                alarm_events.extend(alarms.drain_events())
+                for change in out.mode_changes:
+                    mode_changes.append((t, *change))
+                # the controller's arrays straight into the drives (one kernel call; Plant.command_arrays applies
+                # what Plant.command would with a ThrusterCommand per drive, and rejects the same)
+                plant.command_arrays(t, drive_order, out.thrust_n, out.azimuth_rad, out.enabled)
+                row = self._record(out, n_models, n_names)
+                try:  # the float64s of the row packed into its bytes: a third cheaper than numpy's row assignment
+                    pack_row(data, row_bytes * k if timeseries else 0, *row)
+                except struct.error:  # a value struct cannot pack as a double: numpy converts it (or says why not)
+                    data[k if timeseries else 0] = row
+                if observer is not None:
+                    observer(t, out)
+                if progress is not None and k % report_every == 0:
+                    progress(t, duration)
+        except KeyboardInterrupt:
+            if not interruptible:
+                raise
+            # step k did not finish (a row is written whole, at its end): keep the k before it
+            interrupted_at = k * dt
+            steps = k
         wall = time.perf_counter() - wall0
         columns.rows = steps if timeseries else 0
-        if progress is not None:
+        if progress is not None and interrupted_at is None:
             progress(duration, duration)
         listed = [a.as_dict() for a in alarms.listed(steps * dt)]
         counters = {"decode_rejects": inputs.rejected, "unrouted": inputs.router.unrouted,
                     "transports": inputs.health.counters(), "protocol_faults": list(inputs.applied)}
         return RunResult(scenario, self.config, columns, self.omegas, wall, steps, listed, mode_changes, counters,
-                         alarm_events)
+                         alarm_events, interrupted_at)
 
     def _record(self, out: StepOutput, n_models: int, n_names: int) -> list[float]:
         """One row of the time series, in :func:`column_names` order (NaN where a value does not exist).

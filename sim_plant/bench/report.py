@@ -144,6 +144,8 @@ def summarise(result: RunResult) -> dict[str, Any]:
                              for d in fault_detections(result)],
         "counters": result.counters,
     }
+    if result.interrupted_at_s is not None:  # Ctrl-C: the metrics cover the part that ran
+        summary["interrupted_at_s"] = _round(result.interrupted_at_s, 3)
     metrics: dict[str, Any] = {}
     if engaged.size:
         k0 = int(engaged[0])

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import sys
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -12,6 +13,8 @@ from dpcontrol.runtime.config import load_config, parse_config
 from sim_plant.bench.lockstep import LockstepSimulation, RunResult, controller_mapping
 from sim_plant.bench.report import wrap_headings, write_plots, write_summary, write_timeseries_csv
 from sim_plant.scenario import Scenario
+
+log = logging.getLogger(__name__)
 
 
 @dataclass
@@ -46,7 +49,7 @@ def build_simulation(scenario: Scenario, controller_config: str | Path | None = 
 
 def run_and_report(simulation: LockstepSimulation, out_dir: Path, *, plots: bool = True,
                    progress: bool | None = None, duration_s: float | None = None) -> RunOutputs:
-    """Run to the end and write ``timeseries.csv``, ``summary.json`` and the plots into ``out_dir``."""
+    """Run to the end (or to a Ctrl-C) and write ``timeseries.csv``, ``summary.json`` and the plots into ``out_dir``."""
     out_dir.mkdir(parents=True, exist_ok=True)
     show = sys.stderr.isatty() if progress is None else progress
     callback = None
@@ -62,11 +65,16 @@ def run_and_report(simulation: LockstepSimulation, out_dir: Path, *, plots: bool
         def callback(t: float, total: float) -> None:
             bar.update(task, completed=t / total if total > 0 else 1.0)
 
-    try:
-        result = simulation.run(progress=callback, duration_s=duration_s)
+    scenario = simulation.scenario
+    log.info("%s: %g s to simulate (Ctrl-C ends the run early and writes the part that ran)", scenario.name,
+             scenario.duration_s if duration_s is None else duration_s)
+    try:  # Ctrl-C ends the run early: what ran is written like a whole run (summary: interrupted_at_s)
+        result = simulation.run(progress=callback, duration_s=duration_s, interruptible=True)
     finally:
         if bar is not None:
             bar.stop()
+    if result.steps == 0:
+        raise KeyboardInterrupt  # interrupted before its first step finished: nothing to write
     wrap_headings(result.columns)
     timeseries = out_dir / "timeseries.csv"
     write_timeseries_csv(result.columns, timeseries)
