@@ -379,6 +379,7 @@ class Daemon:
         self._resumed_state: tuple[dict[str, Any], float] | None = None
         self.stats = LoopStats(config.sample_time_s)
         self._stop = threading.Event()
+        self._stop_requested = False  # set with _stop, and alone by a signal handler (_on_signal says why)
         self.recorder: Recorder | None = None
         self.node: ZenohNode | None = None
         self.pump: InputPump | None = None
@@ -406,11 +407,23 @@ class Daemon:
         return self._resumed_state is not None
 
     # ---------------------------------------------------------------- life cycle
-    def request_stop(self, signum: int | None = None, _frame: Any = None) -> None:
-        """Ask the loop to stop after the current cycle (signal handler; ``signum`` is logged at the stop)."""
-        if signum is not None and self.stopped_by is None:
-            self.stopped_by = signal.Signals(signum).name  # (logged by the loop: no logging in a handler)
+    def request_stop(self) -> None:
+        """Ask the loop to stop after the current cycle (from another thread; signals use :meth:`_on_signal`)."""
+        self._stop_requested = True
         self._stop.set()
+
+    def _on_signal(self, signum: int, _frame: Any = None) -> None:
+        """SIGTERM / SIGINT / SIGHUP: stop after the current cycle; the signal is named in the stop's log line.
+
+        Only sets flags. The handler runs on the loop's own thread, between two bytecodes of whatever it
+        was doing — possibly inside ``Event.wait``, holding the event's (non-reentrant) lock, which
+        ``Event.set`` would then wait for forever: the daemon hung on SIGHUP that way once in a full test
+        run (no stop line, killed after 30 s). The loop sees the flag when its current wait ends, within
+        one period. No logging here either (the logging lock, the same trap).
+        """
+        if self.stopped_by is None:
+            self.stopped_by = signal.Signals(signum).name
+        self._stop_requested = True
 
     def _open(self) -> None:
         cfg = self.config
@@ -481,7 +494,7 @@ class Daemon:
         """
         if install_signals:
             for stop_signal in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
-                signal.signal(stop_signal, self.request_stop)
+                signal.signal(stop_signal, self._on_signal)
         try:
             self._open()
         except Exception as error:
@@ -517,7 +530,7 @@ class Daemon:
             if spin > 0.0:
                 log.info("loop.deadline_spin_ms: not spinning on a single CPU (the sensor readers need it)")
             spin = 0.0  # sleep all the way to each deadline
-        while not self._stop.is_set():
+        while not self._stop_requested:
             # The replica recomputes the last cycle just before this deadline: a check of the computation,
             # and the primary's step then starts with warm caches. When the loop is already late it catches
             # up after the next command instead (ControllerReplica.hold).
@@ -570,7 +583,9 @@ class Daemon:
     def _sleep_until(self, t_s: float) -> bool:
         """Sleep until ``t_s`` on the loop's clock (not at all once it is past); True if a stop was requested."""
         now = self.clock()
-        return now < t_s and self._stop.wait(t_s - now)
+        if now < t_s:
+            self._stop.wait(t_s - now)
+        return self._stop_requested
 
     def _apply_realtime(self) -> None:
         """``loop.realtime_priority`` / ``loop.cpu_affinity`` for this (the loop's) thread.
@@ -785,7 +800,7 @@ class Daemon:
         self.controller.mode = Mode.STANDBY
         self._publish_zero(t_s)  # the last command: zero thrust
         log.info("stopping (%s): zero thrust commanded, mode standby",
-                 self.stopped_by or ("end of --duration" if not self._stop.is_set() else "stop requested"))
+                 self.stopped_by or ("end of --duration" if not self._stop_requested else "stop requested"))
         if "status" in self._publishers:
             self._publishers["status"].put(self._status_payload(t_s, self._seq))
         if self.saver is not None:
