@@ -61,6 +61,9 @@ TIMING_WINDOW = 2048
 # entries each), so nothing a sensor legitimately sends is ever dropped, while a flood on a UDP port
 # or a loop stalled until the watchdog restarts it cannot grow the daemon's memory without bound.
 MAX_PENDING_INPUTS = 50_000
+# How long the start-up waits for the peers' liveliness tokens before declaring its own controller token [s]
+# (they arrive within milliseconds on a LAN; a peer not connected by then is caught by its commands later)
+CONTROLLER_CHECK_S = 0.5
 RUNTIME_TOPICS = (
     TopicSpec("cycle", "dpcontrol.cycle",
               "What one control step consumed: the raw-input sequence numbers of its measurements, link "
@@ -399,6 +402,8 @@ class Daemon:
         self._setpoint_rejected_t = -math.inf
         self._inputs_dropped = 0
         self._inputs_dropped_t = -math.inf
+        self._foreign_heard = 0
+        self._foreign_heard_t = -math.inf
         self.stopped_by: str | None = None
 
     @property
@@ -441,9 +446,21 @@ class Daemon:
             self._resume()
         self.node = ZenohNode(cfg.zenoh, cfg.vessel_id, clock=self.clock)
         node = self.node
+        # One controller per vessel: two would command the same thrusters, each fighting the other's
+        # forces. Refuse to start while another holds the controller token (a second `dpcontrol run` by
+        # hand beside the service, a standby computer started in error); a controller that joins later
+        # (a network that heals) is caught by its commands, below.
+        if node.alive_elsewhere("controller", settle_s=CONTROLLER_CHECK_S):
+            raise RuntimeError(f"another controller is alive for vessel {cfg.vessel_id!r} "
+                               f"({node.keys.alive('controller')}): two controllers would command the same "
+                               f"thrusters; stop that one first")
         for topic in ("command", "estimate", "mmae", "control", "status"):
             self._publishers[topic] = node.publisher(topic)
         self._setpoints = node.subscribe("setpoint")
+        # thruster commands for this vessel from any other session: a second controller (not validated: any
+        # sample there that is not ours is the fault)
+        self._foreign_commands: LatestSlot[Any] = LatestSlot()
+        node.subscribe("command", self._foreign_commands, parse=bytes, remote_only=True)
         self._feedback_slot: LatestSlot[Any] = LatestSlot()
         import functools  # noqa: PLC0415
 
@@ -621,6 +638,7 @@ class Daemon:
         sources: list[int] = []
         self.pump.drain(measurements, links, sources)
         self._check_overflow(t_s)
+        self._check_conflict(t_s)
         self.pump.health.apply_links(t_s, links, self.controller.hub, self.alarms)
         requests = [received.message for received in self._setpoints.sink.drain()]
         rejected = self._setpoints.stats
@@ -770,6 +788,20 @@ class Daemon:
                                f"or a stalled loop)")
         elif t_s - self._inputs_dropped_t > 10.0:
             self.alarms.clear(t_s, "inputs.overflow")
+
+    def _check_conflict(self, t_s: float) -> None:
+        """``controller.conflict`` (critical) while another process publishes this vessel's thruster
+        commands; cleared 10 s after the last one heard. The loop goes on commanding: the operator, who
+        knows which controller should have the vessel, stops the other."""
+        heard = self._foreign_commands.count
+        if heard != self._foreign_heard:
+            self._foreign_heard = heard
+            self._foreign_heard_t = t_s
+            self.alarms.raise_(t_s, "controller.conflict", Severity.CRITICAL,
+                               f"another process publishes thruster commands for {self.config.vessel_id!r} "
+                               f"({heard} heard since the start): two controllers command the same thrusters")
+        elif t_s - self._foreign_heard_t > 10.0:
+            self.alarms.clear(t_s, "controller.conflict")
 
     def _persist(self, t_s: float) -> None:
         saver = self.saver

@@ -175,7 +175,7 @@ class TopicSubscriber(Generic[T]):
     """
 
     def __init__(self, session: zenoh.Session, key: str, parse: Callable[[bytes], T | Rejected], sink: _Sink[Any],
-                 clock: Clock) -> None:
+                 clock: Clock, *, remote_only: bool = False) -> None:
         self.key = key
         self.sink = sink
         self._parse = parse
@@ -183,7 +183,8 @@ class TopicSubscriber(Generic[T]):
         self._lock = threading.Lock()
         self._received = self._accepted = self._rejected = self._ignored = self._errors = 0
         self._recent: collections.deque[Rejected] = collections.deque(maxlen=16)
-        self._subscriber = session.declare_subscriber(key, self._on_sample)
+        self._subscriber = session.declare_subscriber(
+            key, self._on_sample, allowed_origin=zenoh.Locality.REMOTE if remote_only else zenoh.Locality.ANY)
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         # Runs on a zenoh thread: tiny, never raises.
@@ -477,6 +478,7 @@ class ZenohNode:
         self._clock = clock
         self._entities: list[Any] = []
         self._peers: set[str] = set()
+        self._declared_roles: set[str] = set()
         self._peer_cond = threading.Condition()
         self._closed = False
         self.session = open_session(config)
@@ -529,7 +531,7 @@ class ZenohNode:
                                          express=express))
 
     def subscribe(self, topic: str, sink: _Sink[Any] | None = None, *,
-                  parse: Callable[[bytes], Any] | None = None) -> TopicSubscriber[Any]:
+                  parse: Callable[[bytes], Any] | None = None, remote_only: bool = False) -> TopicSubscriber[Any]:
         """Subscribe to ``topic`` with validation.
 
         Parameters
@@ -542,12 +544,16 @@ class ZenohNode:
             ``bytes -> message | Rejected``; default: the typed parser for ``command``,
             ``feedback``, ``setpoint`` (e.g. pass ``functools.partial(parse_feedback,
             thruster_names=...)`` to reject unknown thrusters), validated dicts otherwise.
+        remote_only : bool
+            Hear other sessions only, not this one's own publications (a publisher that listens for
+            anybody else publishing on its key).
         """
         self._check_open()
         key = self.keys.topic(topic)
         if sink is None:
             sink = Inbox() if topic == "setpoint" else LatestSlot()
-        return self._keep(TopicSubscriber(self.session, key, parse or default_parser(topic), sink, self._clock))
+        return self._keep(TopicSubscriber(self.session, key, parse or default_parser(topic), sink, self._clock,
+                                          remote_only=remote_only))
 
     def serve_config(self, provider: bytes | Callable[[], bytes]) -> ConfigServer:
         """Declare the ``dp/<vessel>/config`` queryable (see :func:`schemas.config_payload`)."""
@@ -591,7 +597,29 @@ class ZenohNode:
     def declare_alive(self, role: str) -> AliveToken:
         """Declare this process's liveliness token (``controller`` or ``plant``)."""
         self._check_open()
+        self._declared_roles.add(role)
         return self._keep(AliveToken(self.session, self.keys.alive(role)))
+
+    def alive_elsewhere(self, role: str, settle_s: float = 0.5) -> bool:
+        """Whether another session holds the ``dp/<vessel>/alive/<role>`` token (ask before declaring one's own).
+
+        Watches the token with its history for ``settle_s`` [s]: the peers' declarations reach a session
+        a few milliseconds after it opens (a liveliness *query* right after opening finds nothing). A peer
+        not connected within that time is not seen.
+
+        Raises
+        ------
+        RuntimeError
+            This node declared that token itself (it would find its own).
+        """
+        self._check_open()
+        if role in self._declared_roles:
+            raise RuntimeError(f"this node holds the {role!r} token itself")
+        watcher = LivelinessWatcher(self.session, self.keys.alive(role), clock=self._clock)
+        try:
+            return watcher.wait_for(True, settle_s)
+        finally:
+            watcher.close()
 
     def watch_alive(self, role: str, on_change: Callable[[bool, float], None] | None = None) -> LivelinessWatcher:
         """Watch a peer's liveliness token (``controller`` or ``plant``)."""

@@ -187,6 +187,33 @@ def test_liveliness_loss_when_the_peer_session_closes() -> None:
         assert watcher.state.losses == 1
 
 
+def test_alive_elsewhere_sees_the_peers_token_and_never_its_own(pair: tuple[ZenohNode, ZenohNode]) -> None:
+    first, second = pair
+    assert not second.alive_elsewhere("controller", settle_s=0.2)
+    token = first.declare_alive("controller")
+    assert second.alive_elsewhere("controller", settle_s=TIMEOUT_S)
+    with pytest.raises(RuntimeError, match="holds the 'controller' token itself"):
+        first.alive_elsewhere("controller")
+    watcher = second.watch_alive("controller")
+    token.close()
+    assert watcher.wait_for(False, TIMEOUT_S)  # (the undeclaration has reached the second session)
+    assert not second.alive_elsewhere("controller", settle_s=0.2)
+
+
+def test_a_remote_only_subscriber_hears_the_others_not_its_own_session(pair: tuple[ZenohNode, ZenohNode]) -> None:
+    first, second = pair
+    heard = first.subscribe("command", Inbox(), parse=bytes, remote_only=True)
+    own, other = first.publisher("command"), second.publisher("command")
+    assert other.wait_matched(TIMEOUT_S)
+    assert own.put(b"own")
+    assert other.put(b"other")
+    assert heard.sink.wait_count(1, TIMEOUT_S)
+    assert own.put(b"own again")
+    assert other.put(b"other again")
+    assert heard.sink.wait_count(2, TIMEOUT_S)
+    assert [received.message for received in heard.sink.drain()] == [b"other", b"other again"]
+
+
 def test_close_is_clean_and_idempotent() -> None:
     with loopback_pair(f"test{next(_vessels)}") as (a, b):
         publisher = a.publisher("status")
