@@ -76,7 +76,8 @@ RUNTIME_TOPICS = (
 def status_payload(controller: DpController, alarms: AlarmRegistry, t_s: float, seq: int,
                    cycle: schemas.CycleTiming | None = None) -> bytes:
     """The ``dp/<vessel>/status`` payload: mode, per-sensor health, alarms (active and recently cleared),
-    thruster availability and cycle timing. The lockstep simulation builds the same payload."""
+    thruster availability, cycle timing and the outcome of the last operator request. The lockstep
+    simulation builds the same payload."""
     # texts are bounded by the status schema (256 characters)
     sensors = [schemas.SensorHealth(s["name"], s["kind"], s["state"], s["age_s"], s["weight"], s["detail"][:256])
                for s in controller.hub.sensor_status(t_s)]
@@ -85,7 +86,7 @@ def status_payload(controller: DpController, alarms: AlarmRegistry, t_s: float, 
     thrusters = [schemas.ThrusterAvailability(t["name"], t["available"], t["detail"][:256])
                  for t in controller.monitor.status()]
     return schemas.status_payload(t_s=t_s, seq=seq, mode=controller.mode.value, sensors=sensors,
-                                  alarms=listed, cycle=cycle, thrusters=thrusters)
+                                  alarms=listed, cycle=cycle, thrusters=thrusters, request=controller.last_request)
 
 
 def request_as_dict(request: SetpointRequest) -> dict[str, Any]:

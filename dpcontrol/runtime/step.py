@@ -43,10 +43,11 @@ from dpcontrol.runtime.hub import HubOutput, SensorHub
 from dpcontrol.runtime.thrusters import ThrusterFeedback, ThrusterMonitor
 from interfaces.geodesy import LocalFrame
 from interfaces.messages import Measurement
-from interfaces.zenoh.schemas import SetpointRequest
+from interfaces.zenoh.schemas import RequestOutcome, SetpointRequest
 
 STATE_VERSION = 1
 CAPABILITY_FLOOR = 0.05  # share of the fleet's capability below which a demand counts as small [-]
+REQUEST_REFUSED_HOLD_S = 10.0  # operator.request_refused stays up this long after the last refusal [s]
 
 
 class Mode(str, Enum):
@@ -198,6 +199,8 @@ class DpController:
         self._shortfall_since: float | None = None
         self._dead_reckoning_alarm = False  # position.dead_reckoning / heading.lost raised (to be cleared)
         self._heading_lost_alarm = False
+        self.last_request: RequestOutcome | None = None  # (published in the status: a sender finds its seq there)
+        self._request_refused_t: float | None = None  # operator.request_refused raised at [s] (cleared 10 s on)
         self._stage_clock = stage_clock
         self.stage_us: dict[str, float] = {}
         rudders = [i for i, t in enumerate(vessel.thrusters) if t.kind == "propeller_rudder"]
@@ -223,6 +226,26 @@ class DpController:
                     self._requested_mode = Mode(request.mode)
                 except ValueError:
                     out.rejected_requests.append(f"unknown mode {request.mode!r}")
+
+    def _report_requests(self, t_s: float, requests: Sequence[SetpointRequest]) -> None:
+        """The outcome of this step's operator requests (:attr:`last_request`), and ``operator.request_refused``
+        (info) for a refused one, until 10 s after the last refusal: the operator sees why DP did not engage."""
+        refused = "; ".join(self.out.rejected_requests)
+        if refused:
+            if self._request_refused_t is not None:  # a new refusal is a new event (its own time in the status)
+                self.alarms.clear(t_s, "operator.request_refused")
+            self.alarms.raise_(t_s, "operator.request_refused", Severity.INFO, refused)
+            self._request_refused_t = t_s
+        elif self._request_refused_t is not None and t_s - self._request_refused_t > REQUEST_REFUSED_HOLD_S:
+            self.alarms.clear(t_s, "operator.request_refused")
+            self._request_refused_t = None
+        if requests:
+            north, east, heading = self.setpoint_n.tolist()
+            where = (f"set-point {north:.2f} m N, {east:.2f} m E, heading {math.degrees(heading) % 360.0:.1f}°"
+                     if self._setpoint_given or self.mode is not Mode.STANDBY else "no set-point yet")
+            in_force = f"mode {self.mode.value}, {where}"
+            self.last_request = RequestOutcome(requests[-1].seq, t_s, "refused" if refused else "applied",
+                                               f"{refused}; {in_force}" if refused else in_force)
 
     def _estimate_pose(self) -> np.ndarray:
         if self._estimator_ready and self.out.estimate is not None:
@@ -284,6 +307,8 @@ class DpController:
 
         # --- modes and fall-backs
         self._update_mode(t_s, hub)
+        if requests or out.rejected_requests or self._request_refused_t is not None:
+            self._report_requests(t_s, requests)
 
         # --- guidance and control
         tau = out.tau_b

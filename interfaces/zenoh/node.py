@@ -603,9 +603,9 @@ class ZenohNode:
     def alive_elsewhere(self, role: str, settle_s: float = 0.5) -> bool:
         """Whether another session holds the ``dp/<vessel>/alive/<role>`` token (ask before declaring one's own).
 
-        Watches the token with its history for ``settle_s`` [s]: the peers' declarations reach a session
-        a few milliseconds after it opens (a liveliness *query* right after opening finds nothing). A peer
-        not connected within that time is not seen.
+        Watches the token with its history for ``settle_s`` [s] and answers whether it is present at the
+        end: the peers' declarations reach a session a few milliseconds after it opens (a liveliness
+        *query* right after opening finds nothing). A peer not connected within that time is not seen.
 
         Raises
         ------
@@ -617,7 +617,10 @@ class ZenohNode:
             raise RuntimeError(f"this node holds the {role!r} token itself")
         watcher = LivelinessWatcher(self.session, self.keys.alive(role), clock=self._clock)
         try:
-            return watcher.wait_for(True, settle_s)
+            # Present at the end of the window, not "seen at all": a new history subscriber is sometimes
+            # told of a token undeclared just before, then of its loss (8–10 times in 30 on loopback).
+            time.sleep(settle_s)
+            return watcher.present
         finally:
             watcher.close()
 

@@ -107,6 +107,8 @@ from interfaces.messages import Rejected
 # --------------------------------------------------------------------------------------------
 
 MODES: tuple[str, ...] = ("standby", "auto_heading", "auto_position")
+# what became of an operator request (the status's ``request.outcome``)
+REQUEST_OUTCOMES: tuple[str, ...] = ("applied", "refused")
 SENSOR_STATES: tuple[str, ...] = ("ok", "waiting", "stale", "frozen", "rejected", "isolated", "invalid",
                                   "disconnected")
 SEVERITIES: tuple[str, ...] = ("info", "warning", "alarm", "critical")
@@ -490,7 +492,9 @@ STATUS = Schema("dpcontrol.status", 1, Record({
                      "host_steal_percent": Number(0.0, 100.0, nullable=True)},
                     optional=("host_steal_percent",), nullable=True),
     "thrusters": Array(Record({"name": _NAME, "available": Flag(), "detail": Text(max_len=256)}), unique="name"),
-}))
+    "request": Record({"seq": Integer(0, _MAX_SEQ), "t_s": Number(0.0, _MAX_TIME_S),
+                       "outcome": Text(choices=REQUEST_OUTCOMES), "detail": Text(max_len=256)}),
+}, optional=("request",)))
 
 SETPOINT = Schema("dpcontrol.setpoint", 1, Record({
     "mode": Text(choices=MODES, nullable=True),
@@ -1122,6 +1126,18 @@ class CycleTiming:
 
 
 @dataclass(frozen=True, slots=True)
+class RequestOutcome:
+    """What became of the last operator request the controller took (``dp/<vessel>/setpoint``): the
+    request's ``seq``, the controller time [s] of the step that took it, ``applied`` or ``refused``, and
+    what is now in force or why not. A sender finds its own request by its ``seq``."""
+
+    seq: int
+    t_s: float
+    outcome: str
+    detail: str
+
+
+@dataclass(frozen=True, slots=True)
 class ThrusterAvailability:
     """Whether the allocation may use a thruster, and why not."""
 
@@ -1132,8 +1148,11 @@ class ThrusterAvailability:
 
 def status_payload(*, t_s: float, seq: int, mode: str, sensors: Sequence[SensorHealth] = (),
                    alarms: Sequence[Alarm] = (), cycle: CycleTiming | None = None,
-                   thrusters: Sequence[ThrusterAvailability] = ()) -> bytes:
-    """Encode the daemon status: mode, per-sensor health, alarms, cycle timing, thruster availability."""
+                   thrusters: Sequence[ThrusterAvailability] = (), request: RequestOutcome | None = None) -> bytes:
+    """Encode the daemon status: mode, per-sensor health, alarms, cycle timing, thruster availability, and
+    the outcome of the last operator request (``request``, absent before the first)."""
+    extra = {} if request is None else {"request": {
+        "seq": int(request.seq), "t_s": float(request.t_s), "outcome": request.outcome, "detail": request.detail[:256]}}
     return _encode({
         "schema": STATUS.id, "t_s": float(t_s), "seq": int(seq), "mode": mode,
         "sensors": [{"name": s.name, "kind": s.kind, "state": s.state, "age_s": _num(s.age_s),
@@ -1145,6 +1164,7 @@ def status_payload(*, t_s: float, seq: int, mode: str, sensors: Sequence[SensorH
             "p99_us": _num(cycle.p99_us), "missed_deadlines": int(cycle.missed_deadlines),
             "host_steal_percent": _num(cycle.host_steal_percent)},
         "thrusters": [{"name": t.name, "available": bool(t.available), "detail": t.detail} for t in thrusters],
+        **extra,
     })
 
 

@@ -1,0 +1,45 @@
+"""What became of an operator request: ``status.request`` carries its ``seq``, ``applied`` or ``refused`` and
+what is in force or why not; a refused one raises ``operator.request_refused`` (info) until 10 s after the
+last refusal. Before, a refused "auto_position" left the operator with the mode unchanged and no reason
+anywhere but the black-box record."""
+
+from __future__ import annotations
+
+from dpcontrol.bench import bench_config
+from dpcontrol.runtime.daemon import status_payload
+from dpcontrol.runtime.step import REQUEST_REFUSED_HOLD_S, DpController, Mode
+from interfaces.zenoh import schemas
+from interfaces.zenoh.schemas import SetpointRequest
+
+
+def test_a_refused_request_is_reported_with_its_seq_and_reason_then_cleared() -> None:
+    controller = DpController(bench_config())
+    assert controller.last_request is None
+    status = schemas.parse_message("status", status_payload(controller, controller.alarms, 0.0, 1))
+    assert not isinstance(status, schemas.Rejected) and status["request"] is None  # absent before the first
+
+    # no position or heading reference yet: DP cannot engage
+    controller.step(1.0, requests=[SetpointRequest(t_s=1.0, seq=4711, mode="auto_position")])
+    outcome = controller.last_request
+    assert outcome is not None and (outcome.seq, outcome.t_s, outcome.outcome) == (4711, 1.0, "refused")
+    assert outcome.detail.startswith("auto_position refused: no estimate yet")
+    assert outcome.detail.endswith("mode standby, no set-point yet")
+    assert controller.mode is Mode.STANDBY
+    assert controller.alarms.is_active("operator.request_refused")
+
+    status = schemas.parse_message("status", status_payload(controller, controller.alarms, 1.0, 2))
+    assert not isinstance(status, schemas.Rejected)
+    assert status["request"] == {"seq": 4711, "t_s": 1.0, "outcome": "refused", "detail": outcome.detail}
+    alarm = next(a for a in status["alarms"] if a["code"] == "operator.request_refused")
+    assert alarm["active"] and alarm["severity"] == "info" and alarm["text"].startswith("auto_position refused")
+
+    # a set-point alone is applied (and the refusal clears 10 s after it was raised)
+    controller.step(2.0, requests=[SetpointRequest(t_s=2.0, seq=4712, north_m=5.0, east_m=-1.0)])
+    outcome = controller.last_request
+    assert (outcome.seq, outcome.outcome) == (4712, "applied")
+    assert outcome.detail == "mode standby, set-point 5.00 m N, -1.00 m E, heading 0.0°"
+    controller.step(1.0 + REQUEST_REFUSED_HOLD_S)
+    assert controller.alarms.is_active("operator.request_refused")
+    controller.step(1.1 + REQUEST_REFUSED_HOLD_S)
+    assert not controller.alarms.is_active("operator.request_refused")
+    assert controller.last_request.seq == 4712  # kept until the next request
