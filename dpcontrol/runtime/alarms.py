@@ -11,6 +11,7 @@ the engineer who installs the daemon looks first.
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from enum import IntEnum
@@ -124,6 +125,35 @@ class AlarmRegistry:
     def history_codes(self) -> set[str]:
         """Codes ever raised and still listed."""
         return set(self._alarms)
+
+
+class CountAlarm:
+    """An alarm on a running count of events that have no "back to normal" of their own (dropped inputs,
+    rejected requests, foreign commands): raised when the count grows, cleared ``hold_s`` [s] after it
+    last grew.
+
+    Use: ``if alarm.grew(registry, t_s, count): registry.raise_(t_s, alarm.code, alarm.severity, text)`` —
+    the text is built only when the count grew (this runs every control cycle).
+    """
+
+    __slots__ = ("_grew_t", "code", "count", "hold_s", "severity")
+
+    def __init__(self, code: str, severity: Severity, hold_s: float = 10.0) -> None:
+        self.code = code
+        self.severity = severity
+        self.hold_s = hold_s
+        self.count = 0
+        self._grew_t = -math.inf
+
+    def grew(self, registry: AlarmRegistry, t_s: float, count: int) -> bool:
+        """True if ``count`` changed since the last call (the caller raises); clears the alarm once quiet."""
+        if count != self.count:
+            self.count = count
+            self._grew_t = t_s
+            return True
+        if t_s - self._grew_t > self.hold_s:
+            registry.clear(t_s, self.code)
+        return False
 
 
 #: log level of a raised alarm in the journal, by severity (a cleared one is logged at INFO)

@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from dpcontrol.platform_info import HostStealWindow
-from dpcontrol.runtime.alarms import AlarmEvent, AlarmJournal, AlarmRegistry, Severity
+from dpcontrol.runtime.alarms import AlarmEvent, AlarmJournal, AlarmRegistry, CountAlarm, Severity
 from dpcontrol.runtime.config import DaemonConfig, TransportConfig, config_summary
 from dpcontrol.runtime.inputs import SensorRouter, link_source
 from dpcontrol.runtime.persist import BackgroundSaver, StateStore
@@ -399,12 +399,9 @@ class Daemon:
         self._host_steal_percent: float | None = None
         self.realtime_detail = "normal scheduler"
         self.state_detail = ""
-        self._setpoints_rejected = 0
-        self._setpoint_rejected_t = -math.inf
-        self._inputs_dropped = 0
-        self._inputs_dropped_t = -math.inf
-        self._foreign_heard = 0
-        self._foreign_heard_t = -math.inf
+        self._setpoint_rejected = CountAlarm("operator.setpoint_rejected", Severity.INFO)
+        self._inputs_overflow = CountAlarm("inputs.overflow", Severity.WARNING)
+        self._conflict = CountAlarm("controller.conflict", Severity.CRITICAL)
         self.stopped_by: str | None = None
 
     @property
@@ -643,14 +640,10 @@ class Daemon:
         self.pump.health.apply_links(t_s, links, self.controller.hub, self.alarms)
         requests = [received.message for received in self._setpoints.sink.drain()]
         rejected = self._setpoints.stats
-        if rejected.rejected != self._setpoints_rejected:
-            self._setpoints_rejected = rejected.rejected
-            self._setpoint_rejected_t = t_s
+        if self._setpoint_rejected.grew(self.alarms, t_s, rejected.rejected):
             why = rejected.last_rejection
-            self.alarms.raise_(t_s, "operator.setpoint_rejected", Severity.INFO,
+            self.alarms.raise_(t_s, self._setpoint_rejected.code, self._setpoint_rejected.severity,
                                f"setpoint rejected: {why.reason if why else '?'} {why.detail if why else ''}".strip())
-        elif t_s - self._setpoint_rejected_t > 10.0:
-            self.alarms.clear(t_s, "operator.setpoint_rejected")
         feedback: list[ThrusterFeedback] = []
         latest = self._feedback_slot.latest()
         if latest is not None:
@@ -780,29 +773,21 @@ class Daemon:
         """``inputs.overflow`` while reader threads drop inputs (a full queue), cleared 10 s after the last."""
         assert self.pump is not None
         dropped = self.pump.dropped
-        if dropped != self._inputs_dropped:
-            self._inputs_dropped = dropped
-            self._inputs_dropped_t = t_s
-            self.alarms.raise_(t_s, "inputs.overflow", Severity.WARNING,
+        if self._inputs_overflow.grew(self.alarms, t_s, dropped):
+            self.alarms.raise_(t_s, self._inputs_overflow.code, self._inputs_overflow.severity,
                                f"{dropped} sensor inputs dropped since the start: more than "
                                f"{self.pump.max_pending} were waiting for the control loop (an input flood, "
                                f"or a stalled loop)")
-        elif t_s - self._inputs_dropped_t > 10.0:
-            self.alarms.clear(t_s, "inputs.overflow")
 
     def _check_conflict(self, t_s: float) -> None:
         """``controller.conflict`` (critical) while another process publishes this vessel's thruster
         commands; cleared 10 s after the last one heard. The loop goes on commanding: the operator, who
         knows which controller should have the vessel, stops the other."""
         heard = self._foreign_commands.count
-        if heard != self._foreign_heard:
-            self._foreign_heard = heard
-            self._foreign_heard_t = t_s
-            self.alarms.raise_(t_s, "controller.conflict", Severity.CRITICAL,
+        if self._conflict.grew(self.alarms, t_s, heard):
+            self.alarms.raise_(t_s, self._conflict.code, self._conflict.severity,
                                f"another process publishes thruster commands for {self.config.vessel_id!r} "
                                f"({heard} heard since the start): two controllers command the same thrusters")
-        elif t_s - self._foreign_heard_t > 10.0:
-            self.alarms.clear(t_s, "controller.conflict")
 
     def _persist(self, t_s: float) -> None:
         saver = self.saver

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from status_sink import StatusSink
 
 from dpcontrol.runtime.config import parse_config
 from dpcontrol.runtime.daemon import Daemon
@@ -56,29 +57,6 @@ def test_case12_far_setpoint_is_a_rate_limited_reference_without_a_force_spike(f
     assert np.nanmax(run.position_error_m()[run.between(60.0, 300.0)]) <= 5.0  # the vessel follows the reference
 
 
-class _Statuses:
-    """A status sink the test can await on content (zenoh callbacks put into it)."""
-
-    def __init__(self) -> None:
-        self._cond = threading.Condition()
-        self.items: list[dict[str, Any]] = []
-
-    def put(self, received: Any) -> None:
-        with self._cond:
-            self.items.append(received.message)
-            self._cond.notify_all()
-
-    def wait_for(self, predicate: Any, timeout_s: float) -> dict[str, Any] | None:
-        with self._cond:
-            found: list[dict[str, Any]] = []
-
-            def match() -> bool:
-                found[:] = [s for s in self.items if predicate(s)]
-                return bool(found)
-
-            return found[0] if self._cond.wait_for(match, timeout_s) else None
-
-
 GARBAGE = [
     b"\x00\xff not json at all",
     b'{"schema": "dpcontrol.setpoint/1", "t_s": 1.0, "seq": 1, "north_m": 5.0}',            # incomplete
@@ -105,7 +83,7 @@ def test_case12_garbage_setpoint_raises_the_status_alarm_in_the_daemon(tmp_path:
     operator = None
     try:
         operator = ZenohNode(ZenohConfig(connect=(f"tcp/127.0.0.1:{port}",)), "sp")
-        statuses = _Statuses()
+        statuses = StatusSink()
         operator.subscribe("status", statuses)
         assert statuses.wait_for(lambda s: True, WAIT_S) is not None  # the daemon is publishing
         setpoint = operator.publisher("setpoint")

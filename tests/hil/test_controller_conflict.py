@@ -13,6 +13,7 @@ from typing import Any
 
 import pytest
 import yaml
+from status_sink import StatusSink
 
 from dpcontrol.runtime.config import parse_config
 from dpcontrol.runtime.daemon import Daemon
@@ -36,33 +37,6 @@ def _config(tmp_path: Path, zenoh: dict[str, Any]) -> dict[str, Any]:
             "zenoh": zenoh}
 
 
-class _Statuses:
-    """The controller's status messages, awaited on content (zenoh's thread puts them)."""
-
-    def __init__(self) -> None:
-        self._cond = threading.Condition()
-        self._items: list[dict[str, Any]] = []
-
-    def put(self, received: Any) -> None:
-        with self._cond:
-            self._items.append(received.message)
-            self._cond.notify_all()
-
-    def latest(self) -> dict[str, Any] | None:
-        with self._cond:
-            return self._items[-1] if self._items else None
-
-    def wait_for(self, predicate: Any, timeout_s: float) -> dict[str, Any] | None:
-        found: list[dict[str, Any]] = []
-
-        def match() -> bool:
-            found[:] = [status for status in self._items if predicate(status)]
-            return bool(found)
-
-        with self._cond:
-            return found[-1] if self._cond.wait_for(match, timeout_s) else None
-
-
 def _conflict(status: dict[str, Any]) -> dict[str, Any] | None:
     return next((a for a in status["alarms"] if a["code"] == "controller.conflict" and a["active"]), None)
 
@@ -77,7 +51,7 @@ def test_a_second_controller_refuses_to_start_and_foreign_commands_raise_the_con
     operator = None
     try:
         operator = ZenohNode(ZenohConfig(connect=(f"tcp/127.0.0.1:{port}",)), VESSEL)
-        statuses = _Statuses()
+        statuses = StatusSink()
         operator.subscribe("status", statuses)
         assert statuses.wait_for(lambda status: True, WAIT_S) is not None  # the first controller is up
 

@@ -7,7 +7,7 @@ import logging
 
 import pytest
 
-from dpcontrol.runtime.alarms import AlarmJournal, AlarmRegistry, Severity
+from dpcontrol.runtime.alarms import AlarmJournal, AlarmRegistry, CountAlarm, Severity
 
 LOGGER = "test.alarm_journal"
 
@@ -78,3 +78,15 @@ def test_other_codes_are_not_held_by_a_flapping_one(caplog: pytest.LogCaptureFix
     journal.write(10.0, [])
     assert _lines(caplog) == [(logging.INFO, "alarm cleared [WARNING] a: first (1 transition of this alarm in the "
                                              "last 10 s)")]
+
+
+def test_a_count_alarm_is_raised_when_its_count_grows_and_cleared_when_quiet() -> None:
+    alarms = AlarmRegistry()
+    dropped = CountAlarm("inputs.overflow", Severity.WARNING, hold_s=10.0)
+    assert not dropped.grew(alarms, 0.0, 0)
+    assert dropped.grew(alarms, 1.0, 3)
+    alarms.raise_(1.0, dropped.code, dropped.severity, "3 dropped")
+    assert not dropped.grew(alarms, 5.0, 3)
+    assert dropped.grew(alarms, 6.0, 4)  # a later growth restarts the hold
+    assert not dropped.grew(alarms, 15.9, 4) and alarms.is_active("inputs.overflow")
+    assert not dropped.grew(alarms, 16.1, 4) and not alarms.is_active("inputs.overflow")
