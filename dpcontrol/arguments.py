@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import math
 
+from interfaces.zenoh.config import LOCAL_DAEMON_CONNECT
+
 
 def positive_number(text: str) -> float:
     """An argparse type: a finite number > 0 (durations, speeds); ``nan``, ``inf``, 0 and negatives refused.
@@ -21,3 +23,29 @@ def positive_number(text: str) -> float:
     if not 0.0 < value < math.inf:
         raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text!r}")
     return value
+
+
+def finite_number(text: str) -> float:
+    """An argparse type: a finite number (positions, moves, angles); ``nan`` and ``inf`` refused.
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        With what was given (argparse prints it with the option's name, exit 2).
+    """
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return value
+
+
+def add_zenoh_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--vessel``, ``--connect`` and ``--listen``: how an operator's tool finds a vessel's controller over zenoh."""
+    parser.add_argument("--vessel", required=True, help="vessel ID (zenoh keys dp/<vessel>/...)")
+    parser.add_argument("--connect", action="append", metavar="ENDPOINT",
+                        help=f"zenoh endpoint of the daemon (repeatable; default {LOCAL_DAEMON_CONNECT[0]})")
+    parser.add_argument("--listen", action="append", metavar="ENDPOINT", default=[],
+                        help="zenoh endpoint to listen on (default: none)")

@@ -1,4 +1,4 @@
-"""``dpcontrol`` command line (composition layer): run, check-config, monitor, bench, decode, replay, log.
+"""``dpcontrol`` command line (composition layer): run, check-config, monitor, setpoint, bench, decode, replay, log.
 
 Exit codes: 0 success; 1 runtime failure; 2 invalid usage or configuration (the message names the
 file, the key path and what was expected); 130 interrupted (Ctrl-C; ``run`` stops in order on it instead).
@@ -88,6 +88,12 @@ def _cmd_check_config(args: argparse.Namespace) -> int:
 
 def _cmd_monitor(args: argparse.Namespace) -> int:
     from dpcontrol.monitor import run_from_args  # noqa: PLC0415
+
+    return run_from_args(args)
+
+
+def _cmd_setpoint(args: argparse.Namespace) -> int:
+    from dpcontrol.setpoint import run_from_args  # noqa: PLC0415
 
     return run_from_args(args)
 
@@ -204,6 +210,15 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("monitor", help="live view of a running controller over zenoh")
     add_arguments(p)
     p.set_defaults(func=_cmd_monitor)
+
+    from dpcontrol.setpoint import add_arguments as add_setpoint_arguments  # noqa: PLC0415
+
+    p = sub.add_parser("setpoint", help="ask a running controller for a mode or set-point and print its answer",
+                       description="Send one operator request to the vessel's controller over zenoh and wait for "
+                                   "its answer: exit 0 applied; 1 refused, no controller or no answer; 2 invalid "
+                                   "request (nothing sent).")
+    add_setpoint_arguments(p)
+    p.set_defaults(func=_cmd_setpoint)
 
     p = sub.add_parser("bench", help="control-cycle latency benchmark")
     p.add_argument("--json", action="store_true")

@@ -34,16 +34,17 @@ from rich.panel import Panel
 from rich.table import Table
 from rich.text import Text
 
+from dpcontrol.arguments import add_zenoh_arguments
 from dpcontrol.models.frames import ssa
-from interfaces.zenoh.config import ZenohConfig, ZenohOpenError
+from interfaces.zenoh.config import LOCAL_DAEMON_CONNECT, ZenohConfig, ZenohOpenError
 from interfaces.zenoh.keys import ROLES, validate_vessel_id
 from interfaces.zenoh.node import AliveState, LatestSlot, ZenohNode
 from interfaces.zenoh.schemas import parse_message
 
 #: Topics the monitor shows (the operator's own setpoint requests are not displayed).
 MONITOR_TOPICS: tuple[str, ...] = ("estimate", "mmae", "control", "status", "command", "feedback")
-#: Where the monitor connects when no ``--connect`` is given: a daemon on this machine.
-DEFAULT_CONNECT: tuple[str, ...] = ("tcp/127.0.0.1:7447",)
+#: Where it connects when no ``--connect`` is given: a daemon on this machine.
+DEFAULT_CONNECT = LOCAL_DAEMON_CONNECT
 
 _NO_DATA = "no data"
 _PANEL_WIDTH = 62
@@ -216,7 +217,26 @@ def _header(state: MonitorState) -> Panel:
         line.append("   ")
         line.append_text(_alive_text(role, state.alive.get(role)))
     line.append(f"   peers {state.peers}", style="green" if state.peers else "yellow")
+    _request_line(line, status)
     return Panel(line, title="dpcontrol monitor", title_align="left")
+
+
+def _request_line(line: Text, status: Any) -> None:
+    """What became of the last operator request (``status.request``): its outcome, what is in force or why
+    not, and how long ago in the controller's time; nothing before the first request."""
+    request = _get(status, "request")
+    if not isinstance(request, Mapping):
+        return
+    outcome = _text(_get(request, "outcome"), 16)
+    line.append("\nlast request ")
+    line.append(outcome or _DASH, style={"applied": "green", "refused": "bold red"}.get(outcome, "dim"))
+    age = None
+    now, then = _number(_get(status, "t_s")), _number(_get(request, "t_s"))
+    if now is not None and then is not None:
+        age = max(0.0, now - then)
+    if age is not None:
+        line.append(f" {age:.0f} s ago", style="dim")
+    line.append(f": {_text(_get(request, 'detail'), 160)}")
 
 
 def _pose_panel(state: MonitorState) -> Panel:
@@ -594,11 +614,7 @@ def run_monitor(vessel: str, connect: Sequence[str] = DEFAULT_CONNECT, *, listen
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the ``monitor`` options to an argparse (sub)parser."""
-    parser.add_argument("--vessel", required=True, help="vessel ID (zenoh keys dp/<vessel>/...)")
-    parser.add_argument("--connect", action="append", metavar="ENDPOINT",
-                        help=f"zenoh endpoint of the daemon (repeatable; default {DEFAULT_CONNECT[0]})")
-    parser.add_argument("--listen", action="append", metavar="ENDPOINT", default=[],
-                        help="zenoh endpoint to listen on (default: none)")
+    add_zenoh_arguments(parser)
     parser.add_argument("--once", action="store_true",
                         help="print one snapshot (when every topic has data, at most after --wait seconds) and exit")
     parser.add_argument("--wait", type=float, default=3.0, metavar="SECONDS",

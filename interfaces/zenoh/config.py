@@ -42,6 +42,9 @@ _ENDPOINT = re.compile(r"(?P<proto>[a-z][a-z0-9-]*)/(?P<address>[^?#\s]+)(?:\?[^
 _WILDCARD_HOSTS = ("0.0.0.0", "[::]", "::")
 _HOST_PORT_PROTOCOLS = ("tcp", "udp", "tls", "quic")
 MAX_MESSAGE_BYTES = 2 * 1024 * 1024
+#: Where the operator's tools (``dpcontrol monitor``, ``dpcontrol setpoint``) connect when not told: a daemon on
+#: this computer listening on zenoh's usual port (``deploy/config/*.yaml``).
+LOCAL_DAEMON_CONNECT: tuple[str, ...] = ("tcp/127.0.0.1:7447",)
 
 
 class ZenohOpenError(RuntimeError):

@@ -47,7 +47,8 @@ def _payloads(seq: int = 1) -> dict[str, bytes]:
             alarms=[sc.Alarm("GYRO2_FROZEN", "alarm", "gyro2 frozen", 97.0, True),
                     sc.Alarm("GNSS1_STALE", "warning", "cleared", 50.0, False)],
             cycle=sc.CycleTiming(0.1, 142.0, 187.0, 3, 1.5),
-            thrusters=[sc.ThrusterAvailability("bow", True), sc.ThrusterAvailability("stern", False, "trip")]),
+            thrusters=[sc.ThrusterAvailability("bow", True), sc.ThrusterAvailability("stern", False, "trip")],
+            request=sc.RequestOutcome(77, t - 12.0, "refused", "auto_heading refused: no estimate yet; mode standby")),
         "command": sc.command_payload(t_s=t, seq=seq, mode="auto_position", names=["bow", "stern"],
                                       thrust_n=[12e3, -8e3], azimuth_rad=[math.pi / 2, 0.0]),
         "feedback": sc.feedback_payload(t_s=t, seq=seq, names=["bow", "stern"], thrust_n=[11.5e3, math.nan],
@@ -88,12 +89,15 @@ def test_render_shows_every_part() -> None:
     assert "bow" in text and "stern" in text and "no (trip)" in text
     assert "GYRO2_FROZEN" in text and "(1 active)" in text
     assert "p99 187 µs" in text and "missed 3" in text and "host steal 1.5 %" in text
+    # the last operator request (dpcontrol setpoint's answer), its age in the controller's time
+    assert "last request refused 12 s ago: auto_heading refused: no estimate yet; mode standby" in text
 
 
 def test_render_with_no_data_at_all() -> None:
     text = _text(render(MonitorState(vessel="v1", now_s=0.0)))
     assert text.count("no data") >= 8
     assert "controller: ?" in text
+    assert "last request" not in text  # (none yet)
 
 
 def test_render_with_some_topics_missing_and_some_stale() -> None:

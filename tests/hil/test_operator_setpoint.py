@@ -1,0 +1,117 @@
+"""``dpcontrol setpoint``: one operator request to a running controller, and its answer. A real daemon (in this
+process, links down: it runs in standby and publishes every cycle) and the command on real Zenoh sessions on
+127.0.0.1: an applied set-point (exit 0, what is in force), a refused mode (exit 1, why), a relative move
+resolved against the set-point in force, requests refused before sending (exit 2, nothing reaches the
+controller), and no controller (exit 1)."""
+
+from __future__ import annotations
+
+import io
+import json
+import subprocess
+import sys
+import threading
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+import pytest
+
+from dpcontrol.cli import main
+from dpcontrol.runtime.config import parse_config
+from dpcontrol.runtime.daemon import Daemon
+from dpcontrol.setpoint import run_setpoint
+from interfaces.systemd import SystemdNotifier
+from interfaces.zenoh.loopback import free_tcp_port
+
+pytestmark = pytest.mark.hil
+
+VESSEL = "operator"
+TIMEOUT = "30"  # generous bound for zenoh on a loaded 2-core machine; an answer takes one cycle
+
+
+@pytest.fixture(scope="module")
+def controller(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Daemon, str]]:
+    tmp_path = tmp_path_factory.mktemp("operator")
+    port = free_tcp_port()
+    config = {"vessel_id": VESSEL, "vessel": "cybership2", "loop": {"rate_hz": 10},
+              "transports": [{"name": "serial0", "protocol": "nmea0183", "port": str(tmp_path / "no-tty")}],
+              "sensors": [{"name": "gnss1", "kind": "position", "transport": "serial0"},
+                          {"name": "gyro1", "kind": "heading", "transport": "serial0"}],
+              "zenoh": {"listen": [f"tcp/127.0.0.1:{port}"]}}
+    daemon = Daemon(parse_config(config), notifier=SystemdNotifier(environ={}))
+    codes: list[int] = []
+    thread = threading.Thread(target=lambda: codes.append(daemon.run(duration_s=300.0, install_signals=False)))
+    thread.start()
+    try:
+        yield daemon, f"tcp/127.0.0.1:{port}"
+    finally:
+        daemon.request_stop()
+        thread.join(30.0)
+    assert not thread.is_alive() and codes == [0]
+
+
+def _ask(endpoint: str, *options: str, capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+    code = main(["setpoint", "--vessel", VESSEL, "--connect", endpoint, "--timeout", TIMEOUT, *options])
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def test_a_set_point_is_applied_and_a_move_resolves_against_it(controller: tuple[Daemon, str],
+                                                               capsys: pytest.CaptureFixture[str]) -> None:
+    daemon, endpoint = controller
+    code, out, err = _ask(endpoint, "--north", "5", "--east", "-3", "--heading", "90", capsys=capsys)
+    assert code == 0, err
+    assert out == f"{VESSEL}: applied: mode standby, set-point 5.00 m N, -3.00 m E, heading 90.0°\n"
+    np.testing.assert_allclose(daemon.controller.setpoint_n, [5.0, -3.0, np.pi / 2])
+
+    # 2 m ahead along heading 90° is 2 m east; a 45° turn to starboard; as JSON
+    code, out, err = _ask(endpoint, "--move-surge", "2", "--turn", "45", "--json", capsys=capsys)
+    assert code == 0, err
+    answer = json.loads(out)
+    assert answer["outcome"] == "applied" and answer["vessel"] == VESSEL
+    assert answer["detail"] == "mode standby, set-point 5.00 m N, -1.00 m E, heading 135.0°"
+    assert daemon.controller.last_request is not None and daemon.controller.last_request.seq == answer["seq"]
+
+
+def test_a_refused_mode_says_why(controller: tuple[Daemon, str], capsys: pytest.CaptureFixture[str]) -> None:
+    daemon, endpoint = controller
+    code, out, err = _ask(endpoint, "--mode", "auto_position", capsys=capsys)
+    assert code == 1 and out == ""
+    assert err.startswith(f"dpcontrol setpoint: {VESSEL}: refused: "), err
+    assert "mode standby" in err  # what is still in force
+    assert daemon.controller.mode.value == "standby"
+
+
+def test_invalid_requests_are_refused_before_sending(controller: tuple[Daemon, str],
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    daemon, endpoint = controller
+    before = daemon.controller.last_request
+    for options, reason in ((["--north", "5"], "incomplete"), (["--heading", "370"], "out_of_range"),
+                            (["--north", "1", "--east", "1", "--move-north", "2"], "conflict"),
+                            (["--move-surge", "5000"], "out_of_range"), ([], "empty")):
+        code, out, err = _ask(endpoint, *options, capsys=capsys)
+        assert (code, out) == (2, ""), options
+        assert f"invalid request ({reason})" in err and err.rstrip().endswith("nothing sent"), err
+    with pytest.raises(SystemExit) as exit_info:  # argparse: not a finite number
+        main(["setpoint", "--vessel", VESSEL, "--north", "nan", "--east", "0"])
+    assert exit_info.value.code == 2
+    assert daemon.controller.last_request == before  # nothing reached the controller
+
+
+def test_the_console_command_end_to_end(controller: tuple[Daemon, str]) -> None:
+    _daemon, endpoint = controller
+    done = subprocess.run([sys.executable, "-m", "dpcontrol.cli", "setpoint", "--vessel", VESSEL, "--connect",
+                           endpoint, "--heading", "-10", "--timeout", TIMEOUT],
+                          check=False, capture_output=True, text=True, timeout=120.0)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.startswith(f"{VESSEL}: applied: mode standby, set-point ") and "heading 350.0°" in done.stdout
+
+
+def test_no_controller_is_an_error_not_a_hang() -> None:
+    out, err = io.StringIO(), io.StringIO()
+    fields: dict[str, Any] = {"mode": "standby"}
+    code = run_setpoint("nobody", fields, connect=(f"tcp/127.0.0.1:{free_tcp_port()}",), timeout_s=1.0, out=out,
+                        err=err)
+    assert code == 1 and out.getvalue() == ""
+    assert "no controller alive for vessel 'nobody' (dp/nobody/alive/controller) within 1 s" in err.getvalue()
