@@ -388,7 +388,27 @@ def _thrusters_panel(state: MonitorState) -> Panel:
     title = _title(state, "command", "Thrusters (command)")
     fb_label, fb_style = _age(state, "feedback")
     title.append(f"  feedback ({fb_label})", style=fb_style)
-    return Panel(table, title=title, title_align="left")
+    worst_case = _worst_case_line(_get(state.message("status"), "consequence"))
+    return Panel(table if worst_case is None else Group(table, worst_case), title=title, title_align="left")
+
+
+def _worst_case_line(check: Any) -> Text | None:
+    """The last worst-case failure check (``status.consequence``): per failure group, whether the thrusters left
+    would hold the demand and how hard the busiest of them would work; nothing when no check ran."""
+    groups = _get(check, "groups")
+    if not isinstance(groups, list):
+        return None
+    line = Text("worst case:")
+    for group in groups[:16]:
+        holds = _get(group, "holds")
+        utilisation = _number(_get(group, "utilisation"))
+        line.append(f"  {_text(_get(group, 'name'), 20)} ")
+        if holds is True:
+            share = "" if utilisation is None else f" {100.0 * utilisation:.0f} %"
+            line.append("holds" + share, style="yellow" if utilisation is not None and utilisation >= 0.9 else "green")
+        else:
+            line.append("WOULD NOT HOLD" if holds is False else _DASH, style="bold red" if holds is False else "dim")
+    return line
 
 
 def _flag(value: Any, detail: str = "") -> Text:

@@ -18,6 +18,7 @@ from typing import Any
 import yaml
 
 from dpcontrol.allocation.allocator import allocator_kwargs_from_mapping
+from dpcontrol.allocation.consequence import FailureGroup
 from dpcontrol.control import AutopilotConfig, MracConfig, PidConfig, control_config_from_mapping
 from dpcontrol.estimation import WaveFilterConfig
 from dpcontrol.guidance import ReferenceModelConfig, reference_config_from_mapping
@@ -103,6 +104,25 @@ class ThrusterMonitorSettings:
 
 
 @dataclass(frozen=True)
+class ConsequenceSettings:
+    """The worst-case failure check (consequence analysis) of a redundant (DP class 2/3) thruster layout.
+
+    Off when ``groups`` is empty (the default: a vessel without redundancy, such as CyberShip II with one bow
+    tunnel, would alarm whenever DP needs sway). In DP (``auto_position``) the commanded force is averaged
+    over ``averaging_s``; every ``period_s`` that average × ``demand_factor`` (an allowance for the waves
+    and gusts around it) is allocated to the thrusters left after each group's loss; a group whose loss
+    would leave part of it uncovered for ``persist_s`` raises ``consequence.<group>``.
+    """
+
+    groups: tuple[FailureGroup, ...] = ()
+    period_s: float = 1.0
+    averaging_s: float = 30.0
+    demand_factor: float = 1.25
+    persist_s: float = 10.0
+    tolerance: float = 0.002
+
+
+@dataclass(frozen=True)
 class StateSettings:
     """Persisted estimator/controller state for a bumpless restart (issue 9 §4)."""
 
@@ -169,6 +189,7 @@ class DaemonConfig:
     source_file: str | None = None
     realtime: RealtimeSettings = field(default_factory=RealtimeSettings)
     replica: ReplicaSettings = field(default_factory=ReplicaSettings)
+    consequence: ConsequenceSettings = field(default_factory=ConsequenceSettings)
 
     @property
     def sample_time_s(self) -> float:
@@ -434,6 +455,8 @@ def _parse(mapping: object, text: str, file: str | None) -> DaemonConfig:
     )
     tm.finish()
 
+    consequence = _parse_consequence(root.section("consequence"), vessel)
+
     zenoh = ZenohConfig.from_mapping(root.raw("zenoh", None), "zenoh")
 
     rs = root.section("recorder")
@@ -457,7 +480,47 @@ def _parse(mapping: object, text: str, file: str | None) -> DaemonConfig:
     root.finish()
     return DaemonConfig(vessel_id, vessel, datum, rate, initial_mode, auto_engage, tuple(transports), routes,
                         estimator, guidance, control, allocation, hub, fallback, monitor, zenoh, recorder, state,
-                        source_text=text, source_file=file, realtime=realtime, replica=replica)
+                        source_text=text, source_file=file, realtime=realtime, replica=replica,
+                        consequence=consequence)
+
+
+def _parse_consequence(section: Section, vessel: VesselData) -> ConsequenceSettings:
+    """``consequence:``: failure groups by thruster name (each a non-empty list of the vessel's thrusters, not
+    all of them), and the check's timing."""
+    names = [spec.name for spec in vessel.thrusters]
+    groups: list[FailureGroup] = []
+    raw_groups = section.raw("groups", None)
+    where = join(section.path, "groups")
+    if raw_groups is not None:
+        if not isinstance(raw_groups, Mapping) or not raw_groups:
+            raise ConfigError(where, "a mapping of failure group name → list of thruster names "
+                              "(e.g. {bus_a: [bow_tunnel_1, azimuth_port]})", raw_groups)
+        for name, members in raw_groups.items():
+            path = join(where, str(name))
+            if not isinstance(name, str) or not VESSEL_ID_PATTERN.match(name):
+                raise ConfigError(path, "a group name of letters, digits, '_' or '-' (it names an alarm)", name)
+            if not isinstance(members, list) or not members:
+                raise ConfigError(path, "a non-empty list of thruster names", members)
+            for index, member in enumerate(members):
+                if member not in names:
+                    raise ConfigError(f"{path}[{index}]", f"one of the vessel's thrusters ({', '.join(names)})",
+                                      member)
+            if len(set(members)) != len(members):
+                raise ConfigError(path, "each thruster once", members)
+            if set(members) == set(names):
+                raise ConfigError(path, "a group that leaves some thrusters (losing them all can never hold)",
+                                  members)
+            groups.append(FailureGroup(name, tuple(members)))
+    settings = ConsequenceSettings(
+        groups=tuple(groups),
+        period_s=section.number("period_s", 1.0, minimum=0.1),
+        averaging_s=section.number("averaging_s", 30.0, minimum=1.0),
+        demand_factor=section.number("demand_factor", 1.25, minimum=1.0),
+        persist_s=section.number("persist_s", 10.0, minimum=0.0),
+        tolerance=section.number("tolerance", 0.002, minimum=0.0, maximum=0.05),
+    )
+    section.finish()
+    return settings
 
 
 def load_config(path: str | Path) -> DaemonConfig:

@@ -40,6 +40,7 @@ import numpy as np
 from dpcontrol.platform_info import HostStealWindow
 from dpcontrol.runtime.alarms import AlarmEvent, AlarmJournal, AlarmRegistry, CountAlarm, Severity
 from dpcontrol.runtime.config import DaemonConfig, TransportConfig, config_summary
+from dpcontrol.runtime.consequence import ConsequenceReport
 from dpcontrol.runtime.inputs import SensorRouter, link_source
 from dpcontrol.runtime.persist import BackgroundSaver, StateStore
 from dpcontrol.runtime.replica import ControllerReplica
@@ -70,13 +71,18 @@ RUNTIME_TOPICS = (
               "changes, thruster feedback and operator requests (dpcontrol replay feeds exactly these).",
               {"cycle": {"type": "integer"}, "inputs": {"type": "array"}, "links": {"type": "array"},
                "feedback": {"type": "array"}, "requests": {"type": "array"}}),
+    TopicSpec("consequence", "dpcontrol.consequence",
+              "The worst-case failure check: the demand checked and, per failure group, whether the thrusters "
+              "left would hold it, the shortfall and the largest thrust of those left as a share of its rating.",
+              {"demand_b": {"type": "array"}, "groups": {"type": "array"}}),
     TopicSpec("state_loaded", "dpcontrol.state", "Persisted state the daemon resumed from (bumpless restart).",
               {"state": {"type": "object"}}),
 )
 def status_payload(controller: DpController, alarms: AlarmRegistry, t_s: float, seq: int,
                    cycle: schemas.CycleTiming | None = None) -> bytes:
     """The ``dp/<vessel>/status`` payload: mode, per-sensor health, alarms (active and recently cleared),
-    thruster availability, cycle timing and the outcome of the last operator request. The lockstep
+    thruster availability, cycle timing, the outcome of the last operator request and the last worst-case
+    failure check (in DP, when failure groups are configured). The lockstep
     simulation builds the same payload."""
     # texts are bounded by the status schema (256 characters)
     sensors = [schemas.SensorHealth(s["name"], s["kind"], s["state"], s["age_s"], s["weight"], s["detail"][:256])
@@ -85,8 +91,21 @@ def status_payload(controller: DpController, alarms: AlarmRegistry, t_s: float, 
               for a in alarms.listed(t_s)]
     thrusters = [schemas.ThrusterAvailability(t["name"], t["available"], t["detail"][:256])
                  for t in controller.monitor.status()]
+    report = None if controller.consequence is None else controller.consequence.last
+    consequence = None if report is None else schemas.WorstCaseCheck(
+        report.t_s, tuple(report.demand_b.tolist()),
+        tuple(schemas.FailureGroupOutcome(o.group, o.holds, o.utilisation) for o in report.outcomes))
     return schemas.status_payload(t_s=t_s, seq=seq, mode=controller.mode.value, sensors=sensors,
-                                  alarms=listed, cycle=cycle, thrusters=thrusters, request=controller.last_request)
+                                  alarms=listed, cycle=cycle, thrusters=thrusters, request=controller.last_request,
+                                  consequence=consequence)
+
+
+def consequence_record(report: ConsequenceReport) -> dict[str, Any]:
+    """A worst-case failure check as a JSON-able mapping (the recorder's ``consequence`` topic)."""
+    return {"t_s": report.t_s, "demand_b": report.demand_b.tolist(),
+            "groups": [{"name": o.group, "holds": o.holds, "shortfall_b": o.shortfall_b.tolist(),
+                        "utilisation": o.utilisation if math.isfinite(o.utilisation) else None}
+                       for o in report.outcomes]}
 
 
 def request_as_dict(request: SetpointRequest) -> dict[str, Any]:
@@ -685,6 +704,9 @@ class Daemon:
             self.replica.hold(t_s, seq, out, measurements=measurements, feedback=feedback, requests=requests,
                               links=links)
         self._publish_rest(t_s, seq, out)
+        report = self.controller.check_consequences(t_s)  # (after the command: see DpController.check_consequences)
+        if report is not None and self.recorder is not None:
+            self.recorder.record("consequence", t_s, consequence_record(report))
         self.pump.health.update_alarms(t_s, self.alarms)
         drives = self._drives.state
         self.alarms.set(t_s, "thrusters.drives_lost", drives.seen and not drives.present, Severity.ALARM,

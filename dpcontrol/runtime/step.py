@@ -38,6 +38,7 @@ from dpcontrol.models.frames import body_to_ned
 from dpcontrol.models.schema import ConfigError
 from dpcontrol.runtime.alarms import AlarmRegistry, Severity
 from dpcontrol.runtime.config import DaemonConfig
+from dpcontrol.runtime.consequence import ConsequenceMonitor, ConsequenceReport
 from dpcontrol.runtime.estimators import WAVE_FILTER_KINDS, MassAdaptiveEstimator, make_estimator
 from dpcontrol.runtime.hub import HubOutput, SensorHub
 from dpcontrol.runtime.thrusters import ThrusterFeedback, ThrusterMonitor
@@ -178,6 +179,12 @@ class DpController:
         # CAPABILITY_FLOOR × the fleet's capability per DOF, as Python floats (constant; _capability_alarm)
         self._capability_floor = (CAPABILITY_FLOOR * self.allocator.capability_scale).tolist()
         self.monitor = ThrusterMonitor(vessel.thrusters, config.thruster_monitor, self.alarms)
+        # the worst-case failure check (consequence:), run by the caller after the command is out: not in step()
+        self.consequence: ConsequenceMonitor | None = None
+        if config.consequence.groups:
+            with _section_of_config("consequence", config):
+                self.consequence = ConsequenceMonitor(vessel.thrusters, config.consequence, self.alarms,
+                                                      dict(config.allocation))
         n = len(vessel.thrusters)
         self.out = StepOutput(thrust_n=np.zeros(n), azimuth_rad=np.array([t.angle_rad for t in vessel.thrusters]),
                               enabled=np.zeros(n, dtype=bool))
@@ -246,6 +253,15 @@ class DpController:
             in_force = f"mode {self.mode.value}, {where}"
             self.last_request = RequestOutcome(requests[-1].seq, t_s, "refused" if refused else "applied",
                                                f"{refused}; {in_force}" if refused else in_force)
+
+    def check_consequences(self, t_s: float) -> ConsequenceReport | None:
+        """The worst-case failure check (:mod:`dpcontrol.runtime.consequence`) on the step just taken at ``t_s`` [s]:
+        its mode, commanded force and the thrusters in use. Not part of :meth:`step` — a few QP solves once a
+        second must not delay a command: the daemon calls it after the command is published. ``None`` when not
+        configured or when no check ran this cycle."""
+        if self.consequence is None:
+            return None
+        return self.consequence.update(t_s, self.mode.value, self.out.tau_b, self.monitor.available)
 
     def _estimate_pose(self) -> np.ndarray:
         if self._estimator_ready and self.out.estimate is not None:

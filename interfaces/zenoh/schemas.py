@@ -71,6 +71,8 @@ Schemas (version 1; ``?`` = may be ``null``)
     alarms: [{code, severity (info|warning|alarm|critical), text, since_t_s?, active}]
     cycle?: {period_s, duration_us?, p99_us?, missed_deadlines, host_steal_percent?}
     thrusters: [{name, available, detail}]
+    request?: {seq, t_s, outcome (applied|refused), detail}   the last operator request taken
+    consequence?: {t_s, demand_b: {x_n, y_n, n_nm}, groups: [{name, holds, utilisation?}]}   worst-case failure check
 
 ``dpcontrol.setpoint/1`` (operator → daemon, ``dp/<vessel>/setpoint``) — see :func:`parse_setpoint`;
 here ``?`` means the field may be left out (or be ``null``: not given)::
@@ -494,7 +496,11 @@ STATUS = Schema("dpcontrol.status", 1, Record({
     "thrusters": Array(Record({"name": _NAME, "available": Flag(), "detail": Text(max_len=256)}), unique="name"),
     "request": Record({"seq": Integer(0, _MAX_SEQ), "t_s": Number(0.0, _MAX_TIME_S),
                        "outcome": Text(choices=REQUEST_OUTCOMES), "detail": Text(max_len=256)}),
-}, optional=("request",)))
+    "consequence": Record({"t_s": Number(0.0, _MAX_TIME_S), "demand_b": _force(),
+                           "groups": Array(Record({"name": _NAME, "holds": Flag(),
+                                                   "utilisation": Number(0.0, 1e6, nullable=True)}),
+                                           unique="name", max_len=64)}),
+}, optional=("request", "consequence")))
 
 SETPOINT = Schema("dpcontrol.setpoint", 1, Record({
     "mode": Text(choices=MODES, nullable=True),
@@ -1138,6 +1144,26 @@ class RequestOutcome:
 
 
 @dataclass(frozen=True, slots=True)
+class FailureGroupOutcome:
+    """Whether the thrusters left after one failure group's loss would hold the demand, and the largest thrust of
+    those left as a share of its rating [-] (None: none left)."""
+
+    name: str
+    holds: bool
+    utilisation: float | None
+
+
+@dataclass(frozen=True, slots=True)
+class WorstCaseCheck:
+    """The last worst-case failure check (consequence analysis): when [s, controller clock], the demand checked
+    ``(X [N], Y [N], N [N·m])`` in body axes, and each failure group's outcome."""
+
+    t_s: float
+    demand_b: tuple[float, float, float]
+    groups: tuple[FailureGroupOutcome, ...]
+
+
+@dataclass(frozen=True, slots=True)
 class ThrusterAvailability:
     """Whether the allocation may use a thruster, and why not."""
 
@@ -1148,11 +1174,18 @@ class ThrusterAvailability:
 
 def status_payload(*, t_s: float, seq: int, mode: str, sensors: Sequence[SensorHealth] = (),
                    alarms: Sequence[Alarm] = (), cycle: CycleTiming | None = None,
-                   thrusters: Sequence[ThrusterAvailability] = (), request: RequestOutcome | None = None) -> bytes:
-    """Encode the daemon status: mode, per-sensor health, alarms, cycle timing, thruster availability, and
-    the outcome of the last operator request (``request``, absent before the first)."""
-    extra = {} if request is None else {"request": {
+                   thrusters: Sequence[ThrusterAvailability] = (), request: RequestOutcome | None = None,
+                   consequence: WorstCaseCheck | None = None) -> bytes:
+    """Encode the daemon status: mode, per-sensor health, alarms, cycle timing, thruster availability, the
+    outcome of the last operator request (``request``, absent before the first), and the last worst-case
+    failure check (``consequence``, absent when none ran: not configured, or not in DP)."""
+    extra: dict[str, Any] = {} if request is None else {"request": {
         "seq": int(request.seq), "t_s": float(request.t_s), "outcome": request.outcome, "detail": request.detail[:256]}}
+    if consequence is not None:
+        extra["consequence"] = {
+            "t_s": float(consequence.t_s), "demand_b": _vec3(consequence.demand_b, _FORCE),
+            "groups": [{"name": g.name, "holds": bool(g.holds), "utilisation": _num(g.utilisation)}
+                       for g in consequence.groups]}
     return _encode({
         "schema": STATUS.id, "t_s": float(t_s), "seq": int(seq), "mode": mode,
         "sensors": [{"name": s.name, "kind": s.kind, "state": s.state, "age_s": _num(s.age_s),

@@ -167,7 +167,8 @@ def prepare(scenario_path: Path, run_dir: Path, *, realtime: bool = False) -> tu
     priority = realtime_priority_allowed() if realtime else None
     if priority is not None:
         config["loop"]["realtime_priority"] = priority
-    for key in ("estimator", "control", "guidance", "allocation", "hub", "fallback", "thruster_monitor"):
+    for key in ("estimator", "control", "guidance", "allocation", "hub", "fallback", "thruster_monitor",
+                "consequence"):
         if key in controller:
             config[key] = controller[key]
     if config["datum"] is None:

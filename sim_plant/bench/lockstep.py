@@ -65,7 +65,7 @@ def controller_mapping(scenario: Scenario, overrides: Mapping[str, Any] | None =
     The vessel, one sensor per scenario sensor (its kind, rate, noise and lever arm, as an
     installation engineer would configure them from the data sheets) on a transport of its
     protocol, and the scenario's ``controller:`` section (``estimator``, ``control``, ``guidance``,
-    ``allocation``, ``hub``, ``fallback``, ``loop``, ``thruster_monitor``) on top; ``overrides``
+    ``allocation``, ``hub``, ``fallback``, ``loop``, ``thruster_monitor``, ``consequence``) on top; ``overrides``
     (same keys) win over both. DP engages 20 s after the estimator starts unless ``loop`` says
     otherwise.
     """
@@ -803,6 +803,7 @@ class LockstepSimulation:
                                                     heading_rad=sp.heading_rad))
                     next_setpoint += 1
                 out = controller.step(t, measurements, feedback, requests)
+                controller.check_consequences(t)  # (as the daemon, after the step; nothing when not configured)
                 inputs.health.update_alarms(t, alarms)
                 alarm_events.extend(alarms.drain_events())
                 for change in out.mode_changes:

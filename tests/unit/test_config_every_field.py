@@ -1,5 +1,5 @@
 """Issue 8 case 13: an invalid configuration is refused at start with the key named — every sensor,
-transport, thruster, hub, fall-back and thruster-monitor field, each given a value of the wrong type.
+transport, thruster, hub, fall-back, thruster-monitor and consequence field, each given a value of the wrong type.
 
 The field lists are the parsers' own key sets (written out here so that a new field without a test
 shows up as a missing case in review); each case replaces one field of a valid configuration with a
@@ -44,6 +44,8 @@ VALID: dict[str, Any] = {
                  "heading_loss": "standby"},
     "thruster_monitor": {"feedback_timeout_s": 2, "mismatch_fraction": 0.25, "mismatch_persist_s": 5,
                          "shortfall_fraction": 0.1, "shortfall_persist_s": 10},
+    "consequence": {"groups": {"bus_a": ["bow", "az"]}, "period_s": 1, "averaging_s": 30, "demand_factor": 1.25,
+                    "persist_s": 10, "tolerance": 0.002},
 }
 
 SENSOR_FIELDS = {  # (sensor index, field) → bad value
@@ -109,7 +111,8 @@ def test_every_hub_field(field: str) -> None:
         _refused(config, f"hub.{field}")
 
 
-@pytest.mark.parametrize(("section", "field"), [(s, f) for s in ("fallback", "thruster_monitor") for f in VALID[s]])
+@pytest.mark.parametrize(("section", "field"), [(s, f) for s in ("fallback", "thruster_monitor", "consequence")
+                                               for f in VALID[s]])
 def test_every_fallback_and_monitor_field(section: str, field: str) -> None:
     config = copy.deepcopy(VALID)
     config[section][field] = "never" if isinstance(VALID[section][field], (int, float)) else 42

@@ -1,0 +1,155 @@
+"""Consequence analysis in the running controller: the worst-case failure check, its timing and its alarms.
+
+In DP (``auto_position``) the commanded force τ (body axes) is averaged with a first-order filter of time
+constant ``averaging_s`` — the slowly varying environmental load the thrusters hold against, without the
+wave-frequency part the wave filter already keeps out of τ. Once DP has run that long, every ``period_s``
+the average × ``demand_factor`` is checked against each failure group
+(:class:`~dpcontrol.allocation.consequence.WorstCaseFailure`). A group whose loss would leave part of the
+demand uncovered for ``persist_s`` raises the alarm ``consequence.<group>``; it clears after as long holding.
+Outside DP the check rests and its alarms clear (the demand of another mode says nothing of station keeping).
+
+The daemon runs it after the cycle's command is published (a few QP solves once a second must not delay a
+command); the lockstep simulation after each step. No clock of its own: time comes in with each call.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from dpcontrol.allocation.consequence import FailureOutcome, WorstCaseFailure
+from dpcontrol.models.thrusters import ThrusterSpec
+from dpcontrol.runtime.alarms import AlarmRegistry, Severity
+from dpcontrol.runtime.config import ConsequenceSettings
+
+#: The mode the check runs in (station keeping).
+ACTIVE_MODE = "auto_position"
+
+
+@dataclass(frozen=True, slots=True)
+class ConsequenceReport:
+    """The last check, for the status and the recorder.
+
+    Attributes
+    ----------
+    t_s : float
+        When it ran [s] (controller clock).
+    demand_b : ndarray, shape (3,)
+        The demand checked (average × ``demand_factor``) ``[N, N, N·m]``.
+    outcomes : tuple of FailureOutcome
+        One per failure group, in the configured order.
+    """
+
+    t_s: float
+    demand_b: np.ndarray
+    outcomes: tuple[FailureOutcome, ...]
+
+
+class ConsequenceMonitor:
+    """Averages the demand, runs the worst-case failure check at its rate, raises and clears the alarms.
+
+    Parameters
+    ----------
+    thrusters : sequence of ThrusterSpec
+    settings : ConsequenceSettings
+        Must have at least one group.
+    alarms : AlarmRegistry
+        Where ``consequence.<group>`` (severity alarm) is raised.
+    allocation : mapping, optional
+        The control loop's allocator settings.
+    """
+
+    def __init__(self, thrusters: Sequence[ThrusterSpec], settings: ConsequenceSettings, alarms: AlarmRegistry,
+                 allocation: dict[str, object] | None = None) -> None:
+        if not settings.groups:
+            raise ValueError("consequence analysis without failure groups")
+        self.settings = settings
+        self.alarms = alarms
+        self.check = WorstCaseFailure(thrusters, settings.groups, tolerance=settings.tolerance,
+                                      allocation=allocation)
+        self._members = {group.name: ", ".join(group.thrusters) for group in settings.groups}
+        self._mean_b = np.zeros(3)
+        self._engaged_since: float | None = None
+        self._last_t: float | None = None
+        self._next_check = -math.inf
+        # per group: since when its loss would (not) hold [s]; the alarms raised
+        self._failing_since: dict[str, float | None] = dict.fromkeys(self._members)
+        self._holding_since: dict[str, float | None] = dict.fromkeys(self._members)
+        self._raised: set[str] = set()
+        self.last: ConsequenceReport | None = None
+
+    @property
+    def active(self) -> bool:
+        """In DP and averaged for ``averaging_s`` (the checks run)."""
+        return self._engaged_since is not None and self.last is not None
+
+    def update(self, t_s: float, mode: str, tau_b: np.ndarray, available: np.ndarray) -> ConsequenceReport | None:
+        """One control cycle: ``mode`` and the commanded force ``tau_b`` ``[N, N, N·m]`` of the step at ``t_s`` [s],
+        the thrusters ``available`` to the allocation now (bool, (n,)). Returns the check when one ran."""
+        if mode != ACTIVE_MODE:
+            if self._engaged_since is not None:
+                self._rest(t_s)
+            return None
+        tau = np.asarray(tau_b, dtype=float)
+        if not np.all(np.isfinite(tau)):
+            return None  # (a step that failed): kept out of the average, which it would poison for good
+        if self._engaged_since is None or self._last_t is None:
+            self._engaged_since = t_s
+            self._mean_b[:] = tau
+        else:
+            # first-order filter, exact for any step: weight 1 − exp(−Δt/T)
+            weight = -math.expm1(-max(t_s - self._last_t, 0.0) / self.settings.averaging_s)
+            self._mean_b += weight * (tau - self._mean_b)
+        self._last_t = t_s
+        if t_s - self._engaged_since < self.settings.averaging_s or t_s < self._next_check:
+            return None
+        self._next_check = t_s + self.settings.period_s
+        demand = self.settings.demand_factor * self._mean_b
+        outcomes = self.check.evaluate(demand, np.asarray(available, dtype=bool))
+        self.last = ConsequenceReport(t_s, demand, outcomes)
+        for outcome in outcomes:
+            self._judge(t_s, outcome, demand)
+        return self.last
+
+    def _judge(self, t_s: float, outcome: FailureOutcome, demand_b: np.ndarray) -> None:
+        group = outcome.group
+        code = f"consequence.{group}"
+        if outcome.holds:
+            self._failing_since[group] = None
+            since = self._holding_since[group]
+            if since is None:
+                self._holding_since[group] = since = t_s
+            if code in self._raised and t_s - since >= self.settings.persist_s:
+                self.alarms.clear(t_s, code)
+                self._raised.discard(code)
+            return
+        self._holding_since[group] = None
+        since = self._failing_since[group]
+        if since is None:
+            self._failing_since[group] = since = t_s
+        if t_s - since >= self.settings.persist_s:
+            labels = ("kN surge", "kN sway", "kN·m yaw")
+            uncovered = ", ".join(f"{abs(value) / 1e3:.1f} {label}" for value, limit, label
+                                  in zip(outcome.shortfall_b, self.check.tolerance_b, labels, strict=True)
+                                  if abs(value) > limit)
+            text = (f"worst-case failure: losing {group} ({self._members[group]}) would leave "
+                    f"{uncovered or 'part'} of the demand uncovered "
+                    f"({self.settings.demand_factor:g} × the mean force of the last "
+                    f"{self.settings.averaging_s:g} s: {demand_b[0] / 1e3:.1f} kN, {demand_b[1] / 1e3:.1f} kN, "
+                    f"{demand_b[2] / 1e3:.1f} kN·m)")
+            self.alarms.raise_(t_s, code, Severity.ALARM, text)
+            self._raised.add(code)
+
+    def _rest(self, t_s: float) -> None:
+        """Out of DP: the check rests, its alarms clear, the average starts again at the next engagement."""
+        for code in sorted(self._raised):
+            self.alarms.clear(t_s, code)
+        self._raised.clear()
+        self._engaged_since = self._last_t = None
+        self._next_check = -math.inf
+        self._failing_since = dict.fromkeys(self._members)
+        self._holding_since = dict.fromkeys(self._members)
+        self.last = None
