@@ -1,11 +1,11 @@
 """``dpcontrol setpoint``: the operator's request to a running controller, and its answer.
 
 One request on ``dp/<vessel>/setpoint`` (``dpcontrol.setpoint/1``): a mode, an absolute position
-and/or heading, or a relative move or turn. The request is validated here with the daemon's own
-parser (:func:`interfaces.zenoh.schemas.parse_setpoint`), so a malformed one never leaves the
-console. It is sent only when the vessel's controller is alive on the network, with a random
-``seq``; the command then waits for the controller's status to name that ``seq``
-(``status.request``: applied or refused, what is in force or why not) and prints it.
+and/or heading, a relative move or turn, or the reset of a thruster's latched failure. The request
+is validated here with the daemon's own parser (:func:`interfaces.zenoh.schemas.parse_setpoint`), so
+a malformed one never leaves the console. It is sent only when the vessel's controller is alive on
+the network, with a random ``seq``; the command then waits for the controller's status to name that
+``seq`` (``status.request``: applied or refused, what is in force or why not) and prints it.
 
 Exit codes: 0 applied; 1 refused, no controller, no answer within ``--timeout``, or the zenoh
 session could not be opened; 2 invalid request or arguments (nothing sent).
@@ -48,7 +48,7 @@ EXIT_USAGE = 2
 _FIELDS: tuple[tuple[str, str], ...] = (
     ("mode", "mode"), ("north", "north_m"), ("east", "east_m"), ("heading", "heading_deg"),
     ("move_north", "move_north_m"), ("move_east", "move_east_m"), ("move_surge", "move_surge_m"),
-    ("move_sway", "move_sway_m"), ("turn", "turn_deg"))
+    ("move_sway", "move_sway_m"), ("turn", "turn_deg"), ("reset_thruster", "reset_thruster"))
 
 
 @dataclass(frozen=True, slots=True)
@@ -220,6 +220,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                        help="move ahead along the set-point heading [m]")
     moves.add_argument("--move-sway", type=finite_number, metavar="M", help="move to starboard [m]")
     moves.add_argument("--turn", type=finite_number, metavar="DEG", help="turn [deg, clockwise positive]")
+    parser.add_argument("--reset-thruster", metavar="NAME",
+                        help="clear a thruster's latched failure (the drive is repaired): it rejoins the allocation "
+                             "unless its drive reports not ready")
     parser.add_argument("--timeout", type=positive_number, default=DEFAULT_TIMEOUT_S, metavar="SECONDS",
                         help=f"longest wait for the controller's answer (default {DEFAULT_TIMEOUT_S:g})")
     parser.add_argument("--json", action="store_true", help="print the answer as one JSON object")

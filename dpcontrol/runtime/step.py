@@ -179,6 +179,7 @@ class DpController:
         # CAPABILITY_FLOOR × the fleet's capability per DOF, as Python floats (constant; _capability_alarm)
         self._capability_floor = (CAPABILITY_FLOOR * self.allocator.capability_scale).tolist()
         self.monitor = ThrusterMonitor(vessel.thrusters, config.thruster_monitor, self.alarms)
+        self._request_notes: list[str] = []  # what this step's requests did beyond the mode and set-point
         # the worst-case failure check (consequence:), run by the caller after the command is out: not in step()
         self.consequence: ConsequenceMonitor | None = None
         if config.consequence.groups:
@@ -233,6 +234,20 @@ class DpController:
                     self._requested_mode = Mode(request.mode)
                 except ValueError:
                     out.rejected_requests.append(f"unknown mode {request.mode!r}")
+            if request.reset_thruster is not None:
+                self._reset_thruster(request.reset_thruster)
+
+    def _reset_thruster(self, name: str) -> None:
+        """The operator clears a thruster's latched failure (the drive repaired): it rejoins the allocation at the
+        next update unless its drive reports not ready; its mismatch judgement starts again from the feedback."""
+        monitor = self.monitor
+        if name not in {spec.name for spec in self.thrusters}:
+            self.out.rejected_requests.append(f"reset_thruster {name!r}: no such thruster "
+                                              f"({', '.join(spec.name for spec in self.thrusters)})")
+            return
+        latched = monitor.is_latched(name)
+        monitor.reset(name)
+        self._request_notes.append(f"{name} reset" if latched else f"{name} reset (no failure was latched)")
 
     def _report_requests(self, t_s: float, requests: Sequence[SetpointRequest]) -> None:
         """The outcome of this step's operator requests (:attr:`last_request`), and ``operator.request_refused``
@@ -250,7 +265,8 @@ class DpController:
             north, east, heading = self.setpoint_n.tolist()
             where = (f"set-point {north:.2f} m N, {east:.2f} m E, heading {math.degrees(heading) % 360.0:.1f}°"
                      if self._setpoint_given or self.mode is not Mode.STANDBY else "no set-point yet")
-            in_force = f"mode {self.mode.value}, {where}"
+            in_force = "; ".join([f"mode {self.mode.value}, {where}", *self._request_notes])
+            self._request_notes.clear()
             self.last_request = RequestOutcome(requests[-1].seq, t_s, "refused" if refused else "applied",
                                                f"{refused}; {in_force}" if refused else in_force)
 

@@ -331,6 +331,11 @@ class ThrusterMonitor:
                 alarms.clear(t_s, unavailable_code)
                 raised.discard(unavailable_code)
 
+    def is_latched(self, name: str) -> bool:
+        """Whether a mismatch failure of ``name`` is latched (out of the allocation until :meth:`reset`)."""
+        index = self._index.get(name)
+        return index is not None and bool(self._failed[index])
+
     def reset(self, name: str) -> bool:
         """Operator reset of a latched mismatch failure; returns whether the thruster exists."""
         index = self._index.get(name)

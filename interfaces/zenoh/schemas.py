@@ -83,6 +83,7 @@ here ``?`` means the field may be left out (or be ``null``: not given)::
     move_north_m?, move_east_m?  relative move in NED
     move_surge_m?, move_sway_m?  relative move along the current setpoint's heading (body axes)
     turn_deg? | turn_rad?        relative heading change (clockwise positive)
+    reset_thruster?              a thruster whose latched failure the operator clears (repaired: readmitted)
 
 ``dpcontrol.config/1`` (reply of the ``dp/<vessel>/config`` queryable)::
 
@@ -511,8 +512,9 @@ SETPOINT = Schema("dpcontrol.setpoint", 1, Record({
     "move_surge_m": Number(nullable=True), "move_sway_m": Number(nullable=True),
     "turn_deg": Number(-360.0, 360.0, nullable=True),
     "turn_rad": Number(-_ANGLE_LIMIT_RAD, _ANGLE_LIMIT_RAD, nullable=True),
+    "reset_thruster": Text(pattern=_IDENT, max_len=64, nullable=True),
 }, optional=("mode", "north_m", "east_m", "heading_deg", "heading_rad", "move_north_m", "move_east_m",
-             "move_surge_m", "move_sway_m", "turn_deg", "turn_rad")), max_bytes=4_096)
+             "move_surge_m", "move_sway_m", "turn_deg", "turn_rad", "reset_thruster")), max_bytes=4_096)
 
 CONFIG = Schema("dpcontrol.config", 1, Record({"config": AnyObject()}), max_bytes=1_048_576)
 
@@ -706,6 +708,7 @@ class SetpointRequest:
     move_surge_m: float | None = None
     move_sway_m: float | None = None
     turn_rad: float | None = None
+    reset_thruster: str | None = None
 
     @property
     def changes_pose(self) -> bool:
@@ -794,7 +797,8 @@ def parse_setpoint(payload: object, *, limits: SetpointLimits = SetpointLimits()
 
     * absolute: ``{"north_m": 10, "east_m": -5, "heading_deg": 90}`` (position and/or heading);
     * relative: ``{"move_surge_m": 5}``, ``{"move_north_m": 2, "move_east_m": 1}``, ``{"turn_deg": -10}``;
-    * mode only: ``{"mode": "auto_position"}``; ``mode`` may accompany any of the above.
+    * mode only: ``{"mode": "auto_position"}``; ``mode`` may accompany any of the above;
+    * a thruster's latched failure cleared: ``{"reset_thruster": "bow_tunnel_1"}`` (alone or with the above).
 
     Rules: ``north_m`` and ``east_m`` together (``incomplete`` otherwise); at most one of
     ``heading_deg``/``heading_rad`` and of ``turn_deg``/``turn_rad``; no absolute position with a
@@ -836,9 +840,10 @@ def parse_setpoint(payload: object, *, limits: SetpointLimits = SetpointLimits()
         t_s=r["t_s"], seq=r["seq"], mode=r["mode"], north_m=r["north_m"], east_m=r["east_m"],
         heading_rad=None if heading is None else ssa(heading),
         move_north_m=r["move_north_m"], move_east_m=r["move_east_m"], move_surge_m=r["move_surge_m"],
-        move_sway_m=r["move_sway_m"], turn_rad=turn)
-    if request.mode is None and not request.changes_pose:
-        return reject("empty", "request asks for nothing: give a mode, a position, a heading or a move")
+        move_sway_m=r["move_sway_m"], turn_rad=turn, reset_thruster=r["reset_thruster"])
+    if request.mode is None and not request.changes_pose and request.reset_thruster is None:
+        return reject("empty", "request asks for nothing: give a mode, a position, a heading, a move or a thruster "
+                               "to reset")
     return request
 
 
@@ -1205,11 +1210,13 @@ def setpoint_payload(*, t_s: float, seq: int, mode: str | None = None, north_m: 
                      east_m: float | None = None, heading_deg: float | None = None, heading_rad: float | None = None,
                      move_north_m: float | None = None, move_east_m: float | None = None,
                      move_surge_m: float | None = None, move_sway_m: float | None = None,
-                     turn_deg: float | None = None, turn_rad: float | None = None) -> bytes:
+                     turn_deg: float | None = None, turn_rad: float | None = None,
+                     reset_thruster: str | None = None) -> bytes:
     """Encode an operator setpoint request (fields left ``None`` are omitted); see :func:`parse_setpoint`."""
     fields = {"mode": mode, "north_m": north_m, "east_m": east_m, "heading_deg": heading_deg,
               "heading_rad": heading_rad, "move_north_m": move_north_m, "move_east_m": move_east_m,
-              "move_surge_m": move_surge_m, "move_sway_m": move_sway_m, "turn_deg": turn_deg, "turn_rad": turn_rad}
+              "move_surge_m": move_surge_m, "move_sway_m": move_sway_m, "turn_deg": turn_deg, "turn_rad": turn_rad,
+              "reset_thruster": reset_thruster}
     body = {key: value for key, value in fields.items() if value is not None}
     return _encode({"schema": SETPOINT.id, "t_s": float(t_s), "seq": int(seq), **body})
 

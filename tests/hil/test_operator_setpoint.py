@@ -1,8 +1,8 @@
 """``dpcontrol setpoint``: one operator request to a running controller, and its answer. A real daemon (in this
 process, links down: it runs in standby and publishes every cycle) and the command on real Zenoh sessions on
 127.0.0.1: an applied set-point (exit 0, what is in force), a refused mode (exit 1, why), a relative move
-resolved against the set-point in force, requests refused before sending (exit 2, nothing reaches the
-controller), and no controller (exit 1)."""
+resolved against the set-point in force, a latched thruster failure cleared, requests refused before sending
+(exit 2, nothing reaches the controller), and no controller (exit 1)."""
 
 from __future__ import annotations
 
@@ -81,6 +81,18 @@ def test_a_refused_mode_says_why(controller: tuple[Daemon, str], capsys: pytest.
     assert err.startswith(f"dpcontrol setpoint: {VESSEL}: refused: "), err
     assert "mode standby" in err  # what is still in force
     assert daemon.controller.mode.value == "standby"
+
+
+def test_a_thruster_reset(controller: tuple[Daemon, str], capsys: pytest.CaptureFixture[str]) -> None:
+    daemon, endpoint = controller
+    daemon.controller.monitor.load_state_dict({"latched": ["main_port"]})  # (as a restart would find it)
+    code, out, err = _ask(endpoint, "--reset-thruster", "main_port", capsys=capsys)
+    assert code == 0, err
+    assert out.startswith(f"{VESSEL}: applied: mode standby, ") and out.endswith("; main_port reset\n")
+    assert not daemon.controller.monitor.is_latched("main_port")
+    code, out, err = _ask(endpoint, "--reset-thruster", "stern_tunnel", capsys=capsys)
+    assert code == 1 and out == ""
+    assert "refused: reset_thruster 'stern_tunnel': no such thruster (bow_tunnel, main_port, main_starboard)" in err
 
 
 def test_invalid_requests_are_refused_before_sending(controller: tuple[Daemon, str],

@@ -43,3 +43,35 @@ def test_a_refused_request_is_reported_with_its_seq_and_reason_then_cleared() ->
     controller.step(1.1 + REQUEST_REFUSED_HOLD_S)
     assert not controller.alarms.is_active("operator.request_refused")
     assert controller.last_request.seq == 4712  # kept until the next request
+
+
+def test_the_operator_resets_a_latched_thruster_failure() -> None:
+    """A thruster failure judged from the drive's feedback is latched (out of the allocation, and kept across a
+    restart through the persisted state) until the operator clears it: ``reset_thruster`` in a request."""
+    controller = DpController(bench_config())
+    name = controller.thrusters[0].name
+    controller.monitor.load_state_dict({"latched": [name]})  # as a restart finds it in the persisted state
+    controller.step(1.0)
+    assert controller.monitor.is_latched(name) and not controller.monitor.available[0]
+
+    controller.step(1.1, requests=[SetpointRequest(t_s=1.1, seq=7, reset_thruster=name)])
+    outcome = controller.last_request
+    assert (outcome.seq, outcome.outcome) == (7, "applied")
+    assert outcome.detail == f"mode standby, no set-point yet; {name} reset"
+    assert not controller.monitor.is_latched(name) and controller.monitor.available[0]
+
+    controller.step(1.2, requests=[SetpointRequest(t_s=1.2, seq=8, reset_thruster=name)])
+    assert controller.last_request.detail.endswith(f"{name} reset (no failure was latched)")
+    controller.step(1.3, requests=[SetpointRequest(t_s=1.3, seq=9, reset_thruster="stern_jet")])
+    outcome = controller.last_request
+    assert (outcome.seq, outcome.outcome) == (9, "refused")
+    assert outcome.detail.startswith("reset_thruster 'stern_jet': no such thruster (")
+
+
+def test_a_reset_request_is_valid_alone_and_travels_in_the_setpoint_message() -> None:
+    request = schemas.parse_setpoint(schemas.setpoint_payload(t_s=1.0, seq=3, reset_thruster="bow_tunnel_1"))
+    assert isinstance(request, SetpointRequest) and request.reset_thruster == "bow_tunnel_1"
+    assert not request.changes_pose and request.mode is None
+    rejected = schemas.parse_setpoint(b'{"schema": "dpcontrol.setpoint/1", "t_s": 1, "seq": 3, '
+                                      b'"reset_thruster": "bow tunnel"}')
+    assert isinstance(rejected, schemas.Rejected) and "reset_thruster" in rejected.detail
