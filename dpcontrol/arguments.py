@@ -8,6 +8,13 @@ import math
 from interfaces.zenoh.config import LOCAL_DAEMON_CONNECT
 
 
+def _number(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+
+
 def positive_number(text: str) -> float:
     """An argparse type: a finite number > 0 (durations, speeds); ``nan``, ``inf``, 0 and negatives refused.
 
@@ -16,27 +23,15 @@ def positive_number(text: str) -> float:
     argparse.ArgumentTypeError
         With what was given (argparse prints it with the option's name, exit 2).
     """
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    value = _number(text)
     if not 0.0 < value < math.inf:
         raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text!r}")
     return value
 
 
 def finite_number(text: str) -> float:
-    """An argparse type: a finite number (positions, moves, angles); ``nan`` and ``inf`` refused.
-
-    Raises
-    ------
-    argparse.ArgumentTypeError
-        With what was given (argparse prints it with the option's name, exit 2).
-    """
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    """An argparse type: a finite number (positions, moves, angles); ``nan`` and ``inf`` refused (as above)."""
+    value = _number(text)
     if not math.isfinite(value):
         raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
     return value
