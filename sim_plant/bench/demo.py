@@ -389,6 +389,12 @@ def describe_summary(summary: dict[str, Any]) -> list[str]:
         lines.append("control loop: no timing (the daemon wrote no stats)")
     lines.append(f"{describe_steal(summary.get('host_steal'))} during the run: the hypervisor's share of the "
                  "CPUs, 0 on dedicated hardware; on a virtual machine the timing tails grow with it")
+    for group, check in (summary.get("consequence") or {}).items():
+        held, count, busiest = check.get("held", 0), check.get("checks", 0), check.get("utilisation_max")
+        busy = "" if busiest is None else \
+            f", the busiest thruster left at {100.0 * busiest:.0f} % of its rating at most"
+        verdict = "held in every check" if held == count else f"NOT held in {count - held} of the checks"
+        lines.append(f"worst-case failure check: losing {group}: {count} checks, {verdict}{busy}")
     last = summary.get("last_command") or {}
     if summary.get("zero_thrust_commanded_last"):
         lines.append(f"last command: zero thrust, mode {last.get('mode', '?')}")
@@ -444,11 +450,20 @@ def write_report(run_dir: Path, wiring: dict[str, Any], *, daemon_code: int | No
     weights: list[tuple[float, list[float]]] = []
     modes: list[dict[str, Any]] = []
     alarms: list[dict[str, Any]] = []
+    checks: dict[str, dict[str, Any]] = {}  # the worst-case failure checks, per failure group
     records_dir = run_dir / "records"
     if records_dir.exists():
-        for record in read_records(records_dir, ("estimate", "mmae", "mode", "alarm")):
+        for record in read_records(records_dir, ("estimate", "mmae", "mode", "alarm", "consequence")):
             p = record.payload
-            if record.topic == "estimate":
+            if record.topic == "consequence":
+                for group in p.get("groups") or []:
+                    entry = checks.setdefault(str(group.get("name")), {"checks": 0, "held": 0, "utilisation_max": None})
+                    entry["checks"] += 1
+                    entry["held"] += bool(group.get("holds"))
+                    share = group.get("utilisation")
+                    if isinstance(share, (int, float)) and group.get("holds"):
+                        entry["utilisation_max"] = max(entry["utilisation_max"] or 0.0, round(float(share), 3))
+            elif record.topic == "estimate":
                 estimates.append((float(p["t_s"]), p["eta_n"]))
             elif record.topic == "mmae":
                 weights.append((float(p["t_s"]), p["weights"]))
@@ -458,6 +473,7 @@ def write_report(run_dir: Path, wiring: dict[str, Any], *, daemon_code: int | No
                 alarms.append(p)
     summary["mode_changes"] = modes
     summary["alarms_raised"] = sorted({a["code"] for a in alarms if a.get("raised")})
+    summary["consequence"] = checks
     # station keeping on the plant's truth, against the scenario setpoints in force
     if truth:
         t = truth["t_s"]

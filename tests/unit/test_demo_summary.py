@@ -76,3 +76,15 @@ def test_an_empty_summary_guesses_nothing() -> None:
         "on a virtual machine the timing tails grow with it",
         "last command: NOT zero thrust (none received)",
     ]
+
+
+def test_the_worst_case_failure_checks_are_summed_up() -> None:
+    summary = copy.deepcopy(SUMMARY)
+    summary["consequence"] = {"bow_tunnel": {"checks": 87, "held": 87, "utilisation_max": 0.893},
+                              "port_shaft": {"checks": 87, "held": 80, "utilisation_max": 0.41}}
+    lines = describe_summary(summary)
+    assert "worst-case failure check: losing bow_tunnel: 87 checks, held in every check, the busiest thruster " \
+           "left at 89 % of its rating at most" in lines
+    assert any(line.startswith("worst-case failure check: losing port_shaft: 87 checks, NOT held in 7 of the checks")
+               for line in lines)
+    assert lines[-1].startswith("last command")
