@@ -230,12 +230,9 @@ def _request_line(line: Text, status: Any) -> None:
     outcome = _text(_get(request, "outcome"), 16)
     line.append("\nlast request ")
     line.append(outcome or _DASH, style={"applied": "green", "refused": "bold red"}.get(outcome, "dim"))
-    age = None
     now, then = _number(_get(status, "t_s")), _number(_get(request, "t_s"))
     if now is not None and then is not None:
-        age = max(0.0, now - then)
-    if age is not None:
-        line.append(f" {age:.0f} s ago", style="dim")
+        line.append(f" {max(0.0, now - then):.0f} s ago", style="dim")
     line.append(f": {_text(_get(request, 'detail'), 160)}")
 
 

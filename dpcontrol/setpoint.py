@@ -32,8 +32,6 @@ from interfaces.zenoh.keys import validate_vessel_id
 from interfaces.zenoh.node import LatestSlot, ZenohNode
 from interfaces.zenoh.schemas import MODES, parse_message, parse_setpoint, setpoint_payload
 
-#: Where it connects when no ``--connect`` is given: a daemon on this machine.
-DEFAULT_CONNECT = LOCAL_DAEMON_CONNECT
 #: Longest wait for the controller's answer by default [s]: a controller answers in the next cycle
 #: (100 ms at 10 Hz); the rest is for zenoh to connect and discover on a loaded computer.
 DEFAULT_TIMEOUT_S = 5.0
@@ -171,7 +169,7 @@ def _print(answer: Answer, vessel: str, as_json: bool, out: TextIO, err: TextIO)
         err.write(f"dpcontrol setpoint: {answer.detail}\n")
 
 
-def run_setpoint(vessel: str, fields: Mapping[str, Any], *, connect: Sequence[str] = DEFAULT_CONNECT,
+def run_setpoint(vessel: str, fields: Mapping[str, Any], *, connect: Sequence[str] = LOCAL_DAEMON_CONNECT,
                  listen: Sequence[str] = (), timeout_s: float = DEFAULT_TIMEOUT_S, as_json: bool = False,
                  out: TextIO | None = None, err: TextIO | None = None) -> int:
     """Validate, send and report one request (the ``dpcontrol setpoint`` command); returns the exit code."""
@@ -230,5 +228,5 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run_from_args(args: argparse.Namespace) -> int:
     """Run :func:`run_setpoint` from parsed :func:`add_arguments` options."""
-    return run_setpoint(args.vessel, request_fields(args), connect=tuple(args.connect or DEFAULT_CONNECT),
+    return run_setpoint(args.vessel, request_fields(args), connect=tuple(args.connect or LOCAL_DAEMON_CONNECT),
                         listen=tuple(args.listen or ()), timeout_s=args.timeout, as_json=args.json)

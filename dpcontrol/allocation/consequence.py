@@ -93,12 +93,12 @@ class WorstCaseFailure:
                  tolerance: float = 0.002, allocation: Mapping[str, object] | None = None) -> None:
         names = [spec.name for spec in thrusters]
         self.groups = tuple(groups)
-        #: the shortfall per DOF that still holds ``[N, N, N·m]``
         self._allocators = [ThrustAllocator(thrusters, STATIC_SAMPLE_TIME_S, **dict(allocation or {}))
                             for _ in self.groups]
         self._lost = [np.array([name in group.thrusters for name in names]) for group in self.groups]
         self._rating = np.array([spec.max_thrust_n for spec in thrusters])
         self._reverse = np.array([-spec.min_thrust_n for spec in thrusters])
+        #: the shortfall per DOF that still holds ``[N, N, N·m]``
         self.tolerance_b = tolerance * self._allocators[0].capability_scale if self._allocators else np.zeros(3)
 
     def evaluate(self, demand_b: np.ndarray, available: np.ndarray) -> tuple[FailureOutcome, ...]:

@@ -71,20 +71,19 @@ class ConsequenceMonitor:
         self.check = WorstCaseFailure(thrusters, settings.groups, tolerance=settings.tolerance,
                                       allocation=allocation)
         self._members = {group.name: ", ".join(group.thrusters) for group in settings.groups}
+        self._codes = [f"consequence.{group.name}" for group in settings.groups]
         self._mean_b = np.zeros(3)
         self._engaged_since: float | None = None
         self._last_t: float | None = None
         self._next_check = -math.inf
-        # per group: since when its loss would (not) hold [s]; the alarms raised
-        self._failing_since: dict[str, float | None] = dict.fromkeys(self._members)
-        self._holding_since: dict[str, float | None] = dict.fromkeys(self._members)
-        self._raised: set[str] = set()
+        # per group: whether its loss would hold at the last check, and since when [s] (None: no check yet)
+        self._verdict: dict[str, tuple[bool, float] | None] = dict.fromkeys(self._members)
         self.last: ConsequenceReport | None = None
 
     @property
     def active(self) -> bool:
         """In DP and averaged for ``averaging_s`` (the checks run)."""
-        return self._engaged_since is not None and self.last is not None
+        return self.last is not None
 
     def update(self, t_s: float, mode: str, tau_b: np.ndarray, available: np.ndarray) -> ConsequenceReport | None:
         """One control cycle: ``mode`` and the commanded force ``tau_b`` ``[N, N, N·m]`` of the step at ``t_s`` [s],
@@ -117,20 +116,14 @@ class ConsequenceMonitor:
     def _judge(self, t_s: float, outcome: FailureOutcome, demand_b: np.ndarray) -> None:
         group = outcome.group
         code = f"consequence.{group}"
-        if outcome.holds:
-            self._failing_since[group] = None
-            since = self._holding_since[group]
-            if since is None:
-                self._holding_since[group] = since = t_s
-            if code in self._raised and t_s - since >= self.settings.persist_s:
-                self.alarms.clear(t_s, code)
-                self._raised.discard(code)
+        verdict = self._verdict[group]
+        if verdict is None or verdict[0] != outcome.holds:
+            self._verdict[group] = verdict = (outcome.holds, t_s)
+        if t_s - verdict[1] < self.settings.persist_s:
             return
-        self._holding_since[group] = None
-        since = self._failing_since[group]
-        if since is None:
-            self._failing_since[group] = since = t_s
-        if t_s - since >= self.settings.persist_s:
+        if outcome.holds:
+            self.alarms.clear(t_s, code)  # (nothing when not raised)
+        else:
             labels = ("kN surge", "kN sway", "kN·m yaw")
             uncovered = ", ".join(f"{abs(value) / 1e3:.1f} {label}" for value, limit, label
                                   in zip(outcome.shortfall_b, self.check.tolerance_b, labels, strict=True)
@@ -141,15 +134,12 @@ class ConsequenceMonitor:
                     f"{self.settings.averaging_s:g} s: {demand_b[0] / 1e3:.1f} kN, {demand_b[1] / 1e3:.1f} kN, "
                     f"{demand_b[2] / 1e3:.1f} kN·m)")
             self.alarms.raise_(t_s, code, Severity.ALARM, text)
-            self._raised.add(code)
 
     def _rest(self, t_s: float) -> None:
         """Out of DP: the check rests, its alarms clear, the average starts again at the next engagement."""
-        for code in sorted(self._raised):
+        for code in self._codes:
             self.alarms.clear(t_s, code)
-        self._raised.clear()
         self._engaged_since = self._last_t = None
         self._next_check = -math.inf
-        self._failing_since = dict.fromkeys(self._members)
-        self._holding_since = dict.fromkeys(self._members)
+        self._verdict = dict.fromkeys(self._members)
         self.last = None

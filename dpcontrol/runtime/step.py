@@ -240,13 +240,11 @@ class DpController:
     def _reset_thruster(self, name: str) -> None:
         """The operator clears a thruster's latched failure (the drive repaired): it rejoins the allocation at the
         next update unless its drive reports not ready; its mismatch judgement starts again from the feedback."""
-        monitor = self.monitor
-        if name not in {spec.name for spec in self.thrusters}:
+        latched = self.monitor.is_latched(name)
+        if not self.monitor.reset(name):  # (False: no such thruster)
             self.out.rejected_requests.append(f"reset_thruster {name!r}: no such thruster "
                                               f"({', '.join(spec.name for spec in self.thrusters)})")
             return
-        latched = monitor.is_latched(name)
-        monitor.reset(name)
         self._request_notes.append(f"{name} reset" if latched else f"{name} reset (no failure was latched)")
 
     def _report_requests(self, t_s: float, requests: Sequence[SetpointRequest]) -> None:
