@@ -5,7 +5,8 @@ and/or heading, a relative move or turn, or the reset of a thruster's latched fa
 is validated here with the daemon's own parser (:func:`interfaces.zenoh.schemas.parse_setpoint`), so
 a malformed one never leaves the console. It is sent only when the vessel's controller is alive on
 the network, with a random ``seq``; the command then waits for the controller's status to name that
-``seq`` (``status.request``: applied or refused, what is in force or why not) and prints it.
+``seq`` (``status.requests``, the requests taken in the last second, or ``status.request``, the last:
+applied or refused, what is in force or why not) and prints it.
 
 Exit codes: 0 applied; 1 refused, no controller, no answer within ``--timeout``, or the zenoh
 session could not be opened; 2 invalid request or arguments (nothing sent).
@@ -82,10 +83,15 @@ def request_fields(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _answer_to(seq: int, status: Mapping[str, Any] | None) -> Answer | None:
-    request = None if status is None else status.get("request")
-    if not isinstance(request, Mapping) or request.get("seq") != seq:
+    """This request's answer in a status: among the requests taken in the last second (``requests``: another
+    console's request in the same cycle is not ours), else the last one taken (``request``)."""
+    if status is None:
         return None
-    return Answer(str(request.get("outcome")), str(request.get("detail", "")), seq, request.get("t_s"))
+    candidates = [*(status.get("requests") or ()), status.get("request")]
+    for request in candidates:
+        if isinstance(request, Mapping) and request.get("seq") == seq:
+            return Answer(str(request.get("outcome")), str(request.get("detail", "")), seq, request.get("t_s"))
+    return None
 
 
 def _rejected_alarm(status: Mapping[str, Any] | None) -> str | None:

@@ -45,7 +45,7 @@ from dpcontrol.runtime.inputs import SensorRouter, link_source
 from dpcontrol.runtime.persist import BackgroundSaver, StateStore
 from dpcontrol.runtime.replica import ControllerReplica
 from dpcontrol.runtime.spin import DeadlineSpinner, loop_spinner
-from dpcontrol.runtime.step import DpController, Mode, StepOutput
+from dpcontrol.runtime.step import RECENT_REQUESTS_S, DpController, Mode, StepOutput
 from dpcontrol.runtime.thrusters import ThrusterFeedback
 from dpcontrol.runtime.transport_health import InputHealth
 from interfaces.messages import LinkStatus, Measurement, RejectedInput
@@ -81,7 +81,8 @@ RUNTIME_TOPICS = (
 def status_payload(controller: DpController, alarms: AlarmRegistry, t_s: float, seq: int,
                    cycle: schemas.CycleTiming | None = None) -> bytes:
     """The ``dp/<vessel>/status`` payload: mode, per-sensor health, alarms (active and recently cleared),
-    thruster availability, cycle timing, the outcome of the last operator request and the last worst-case
+    thruster availability, cycle timing, the outcome of the last operator request (and of every one taken in
+    the last second: several in one cycle, from two consoles, each get their answer) and the last worst-case
     failure check (in DP, when failure groups are configured). The lockstep
     simulation builds the same payload."""
     # texts are bounded by the status schema (256 characters)
@@ -97,7 +98,8 @@ def status_payload(controller: DpController, alarms: AlarmRegistry, t_s: float, 
         tuple(schemas.FailureGroupOutcome(o.group, o.holds, o.utilisation) for o in report.outcomes))
     return schemas.status_payload(t_s=t_s, seq=seq, mode=controller.mode.value, sensors=sensors,
                                   alarms=listed, cycle=cycle, thrusters=thrusters, request=controller.last_request,
-                                  consequence=consequence)
+                                  requests=controller.requests_since(t_s - RECENT_REQUESTS_S) if
+                                  controller.recent_requests else (), consequence=consequence)
 
 
 def consequence_record(report: ConsequenceReport) -> dict[str, Any]:

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+from collections import deque
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from enum import Enum
@@ -49,6 +50,8 @@ from interfaces.zenoh.schemas import RequestOutcome, SetpointRequest
 STATE_VERSION = 1
 CAPABILITY_FLOOR = 0.05  # share of the fleet's capability below which a demand counts as small [-]
 REQUEST_REFUSED_HOLD_S = 10.0  # operator.request_refused stays up this long after the last refusal [s]
+RECENT_REQUESTS = 16  # outcomes kept for the status's ``requests`` (the last second's; see recent_requests)
+RECENT_REQUESTS_S = 1.0  # how long an outcome stays in the status's ``requests`` [s]
 
 
 class Mode(str, Enum):
@@ -179,7 +182,10 @@ class DpController:
         # CAPABILITY_FLOOR × the fleet's capability per DOF, as Python floats (constant; _capability_alarm)
         self._capability_floor = (CAPABILITY_FLOOR * self.allocator.capability_scale).tolist()
         self.monitor = ThrusterMonitor(vessel.thrusters, config.thruster_monitor, self.alarms)
-        self._request_notes: list[str] = []  # what this step's requests did beyond the mode and set-point
+        # this step's requests, each as (seq, why it was refused, what it did beyond the mode and set-point), and
+        # the index of the one whose mode is the step's requested mode (a mode refusal is that request's)
+        self._taken: list[tuple[int, list[str], list[str]]] = []
+        self._mode_request: int | None = None
         # the worst-case failure check (consequence:), run by the caller after the command is out: not in step()
         self.consequence: ConsequenceMonitor | None = None
         if config.consequence.groups:
@@ -208,6 +214,9 @@ class DpController:
         self._dead_reckoning_alarm = False  # position.dead_reckoning / heading.lost raised (to be cleared)
         self._heading_lost_alarm = False
         self.last_request: RequestOutcome | None = None  # (published in the status: a sender finds its seq there)
+        # every request's outcome, newest last: the status lists the last second's (several in one cycle each
+        # get their own answer)
+        self.recent_requests: deque[RequestOutcome] = deque(maxlen=RECENT_REQUESTS)
         self._request_refused_t: float | None = None  # operator.request_refused raised at [s] (cleared 10 s on)
         self._stage_clock = stage_clock
         self.stage_us: dict[str, float] = {}
@@ -222,8 +231,14 @@ class DpController:
         self._requested_mode = Mode(mode)
 
     def _apply_requests(self, t_s: float, requests: Iterable[SetpointRequest]) -> None:
+        """Apply this step's requests in their order of arrival, each answered on its own (:meth:`_report_requests`):
+        a later set-point or mode replaces an earlier one of the same step, and that one's answer says so."""
         out = self.out
+        taken = self._taken
+        taken.clear()
         for request in requests:
+            refusals: list[str] = []
+            notes: list[str] = []
             if request.changes_pose:
                 current = self.setpoint_n if self._setpoint_given else self._estimate_pose()
                 north, east, heading = request.resolve(float(current[0]), float(current[1]), float(current[2]))
@@ -233,23 +248,33 @@ class DpController:
                 try:
                     self._requested_mode = Mode(request.mode)
                 except ValueError:
-                    out.rejected_requests.append(f"unknown mode {request.mode!r}")
+                    refusals.append(f"unknown mode {request.mode!r}")
+                else:
+                    if self._mode_request is not None:
+                        taken[self._mode_request][2].append(
+                            f"mode {request.mode} requested after it in the same cycle (seq {request.seq})")
+                    self._mode_request = len(taken)
             if request.reset_thruster is not None:
-                self._reset_thruster(request.reset_thruster)
+                self._reset_thruster(request.reset_thruster, refusals, notes)
+            out.rejected_requests.extend(refusals)
+            taken.append((request.seq, refusals, notes))
 
-    def _reset_thruster(self, name: str) -> None:
+    def _reset_thruster(self, name: str, refusals: list[str], notes: list[str]) -> None:
         """The operator clears a thruster's latched failure (the drive repaired): it rejoins the allocation at the
-        next update unless its drive reports not ready; its mismatch judgement starts again from the feedback."""
+        next update unless its drive reports not ready; its mismatch judgement starts again from the feedback.
+        Why not, or what was done, goes to the request's ``refusals`` or ``notes``."""
         latched = self.monitor.is_latched(name)
         if not self.monitor.reset(name):  # (False: no such thruster)
-            self.out.rejected_requests.append(f"reset_thruster {name!r}: no such thruster "
-                                              f"({', '.join(spec.name for spec in self.thrusters)})")
+            refusals.append(f"reset_thruster {name!r}: no such thruster "
+                            f"({', '.join(spec.name for spec in self.thrusters)})")
             return
-        self._request_notes.append(f"{name} reset" if latched else f"{name} reset (no failure was latched)")
+        notes.append(f"{name} reset" if latched else f"{name} reset (no failure was latched)")
 
     def _report_requests(self, t_s: float, requests: Sequence[SetpointRequest]) -> None:
-        """The outcome of this step's operator requests (:attr:`last_request`), and ``operator.request_refused``
-        (info) for a refused one, until 10 s after the last refusal: the operator sees why DP did not engage."""
+        """The outcome of each of this step's operator requests (:attr:`recent_requests`, :attr:`last_request`), and
+        ``operator.request_refused`` (info) for a refused one, until 10 s after the last refusal: the operator sees
+        why DP did not engage. A request is refused when any part of it was (the rest stays applied: the detail
+        says what is in force); a mode the vessel cannot enter is the refusal of the request that asked for it."""
         refused = "; ".join(self.out.rejected_requests)
         if refused:
             if self._request_refused_t is not None:  # a new refusal is a new event (its own time in the status)
@@ -263,10 +288,17 @@ class DpController:
             north, east, heading = self.setpoint_n.tolist()
             where = (f"set-point {north:.2f} m N, {east:.2f} m E, heading {math.degrees(heading) % 360.0:.1f}°"
                      if self._setpoint_given or self.mode is not Mode.STANDBY else "no set-point yet")
-            in_force = "; ".join([f"mode {self.mode.value}, {where}", *self._request_notes])
-            self._request_notes.clear()
-            self.last_request = RequestOutcome(requests[-1].seq, t_s, "refused" if refused else "applied",
-                                               f"{refused}; {in_force}" if refused else in_force)
+            in_force = f"mode {self.mode.value}, {where}"
+            for seq, refusals, notes in self._taken:
+                detail = "; ".join([*refusals, in_force, *notes])
+                self.recent_requests.append(RequestOutcome(seq, t_s, "refused" if refusals else "applied", detail))
+            self._taken.clear()
+            self.last_request = self.recent_requests[-1]
+
+    def requests_since(self, t_s: float) -> list[RequestOutcome]:
+        """The outcomes of the requests taken at or after ``t_s`` [s], oldest first (at most
+        :data:`RECENT_REQUESTS`)."""
+        return [outcome for outcome in self.recent_requests if outcome.t_s >= t_s]
 
     def check_consequences(self, t_s: float) -> ConsequenceReport | None:
         """The worst-case failure check (:mod:`dpcontrol.runtime.consequence`) on the step just taken at ``t_s`` [s]:
@@ -292,6 +324,7 @@ class DpController:
         out.t_s = t_s
         out.rejected_requests.clear()
         out.mode_changes.clear()
+        self._mode_request = None  # (set by _apply_requests: which of this step's requests asked for a mode)
         dt = self.dt_s if self._last_t_s is None else min(max(t_s - self._last_t_s, 1e-3), 10.0 * self.dt_s)
         self._last_t_s = t_s
         if requests:  # (most cycles have none)
@@ -512,7 +545,10 @@ class DpController:
             elif wanted is Mode.AUTO_POSITION and not hub.position_available:
                 refuse = "no position reference"
             if refuse is not None:
-                out.rejected_requests.append(f"{wanted.value} refused: {refuse}")
+                text = f"{wanted.value} refused: {refuse}"
+                out.rejected_requests.append(text)
+                if self._mode_request is not None:  # (None: the auto-engage asked, not the operator)
+                    self._taken[self._mode_request][1].append(text)
                 self._requested_mode = self.mode
                 return
             estimate = out.estimate

@@ -72,6 +72,7 @@ Schemas (version 1; ``?`` = may be ``null``)
     cycle?: {period_s, duration_us?, p99_us?, missed_deadlines, host_steal_percent?}
     thrusters: [{name, available, detail}]
     request?: {seq, t_s, outcome (applied|refused), detail}   the last operator request taken
+    requests?: [{seq, t_s, outcome, detail}]   every request taken in the last second, oldest first (≤ 16)
     consequence?: {t_s, demand_b: {x_n, y_n, n_nm}, groups: [{name, holds, utilisation?}]}   worst-case failure check
 
 ``dpcontrol.setpoint/1`` (operator → daemon, ``dp/<vessel>/setpoint``) — see :func:`parse_setpoint`;
@@ -481,6 +482,9 @@ CONTROL = Schema("dpcontrol.control", 1, Record({
     }, nullable=True),
 }))
 
+_REQUEST_OUTCOME = Record({"seq": Integer(0, _MAX_SEQ), "t_s": Number(0.0, _MAX_TIME_S),
+                           "outcome": Text(choices=REQUEST_OUTCOMES), "detail": Text(max_len=256)})
+
 STATUS = Schema("dpcontrol.status", 1, Record({
     "mode": Text(pattern=_IDENT, max_len=32),
     "sensors": Array(Record({"name": _NAME, "kind": Text(pattern=_IDENT, max_len=32),
@@ -495,13 +499,13 @@ STATUS = Schema("dpcontrol.status", 1, Record({
                      "host_steal_percent": Number(0.0, 100.0, nullable=True)},
                     optional=("host_steal_percent",), nullable=True),
     "thrusters": Array(Record({"name": _NAME, "available": Flag(), "detail": Text(max_len=256)}), unique="name"),
-    "request": Record({"seq": Integer(0, _MAX_SEQ), "t_s": Number(0.0, _MAX_TIME_S),
-                       "outcome": Text(choices=REQUEST_OUTCOMES), "detail": Text(max_len=256)}),
+    "request": _REQUEST_OUTCOME,
+    "requests": Array(_REQUEST_OUTCOME, max_len=16),
     "consequence": Record({"t_s": Number(0.0, _MAX_TIME_S), "demand_b": _force(),
                            "groups": Array(Record({"name": _NAME, "holds": Flag(),
                                                    "utilisation": Number(0.0, 1e6, nullable=True)}),
                                            unique="name", max_len=64)}),
-}, optional=("request", "consequence")))
+}, optional=("request", "requests", "consequence")))
 
 SETPOINT = Schema("dpcontrol.setpoint", 1, Record({
     "mode": Text(choices=MODES, nullable=True),
@@ -1138,9 +1142,9 @@ class CycleTiming:
 
 @dataclass(frozen=True, slots=True)
 class RequestOutcome:
-    """What became of the last operator request the controller took (``dp/<vessel>/setpoint``): the
-    request's ``seq``, the controller time [s] of the step that took it, ``applied`` or ``refused``, and
-    what is now in force or why not. A sender finds its own request by its ``seq``."""
+    """What became of an operator request the controller took (``dp/<vessel>/setpoint``): the request's
+    ``seq``, the controller time [s] of the step that took it, ``applied`` or ``refused``, and what is now in
+    force or why not. A sender finds its own request by its ``seq``."""
 
     seq: int
     t_s: float
@@ -1180,12 +1184,14 @@ class ThrusterAvailability:
 def status_payload(*, t_s: float, seq: int, mode: str, sensors: Sequence[SensorHealth] = (),
                    alarms: Sequence[Alarm] = (), cycle: CycleTiming | None = None,
                    thrusters: Sequence[ThrusterAvailability] = (), request: RequestOutcome | None = None,
-                   consequence: WorstCaseCheck | None = None) -> bytes:
+                   consequence: WorstCaseCheck | None = None, requests: Sequence[RequestOutcome] = ()) -> bytes:
     """Encode the daemon status: mode, per-sensor health, alarms, cycle timing, thruster availability, the
-    outcome of the last operator request (``request``, absent before the first), and the last worst-case
-    failure check (``consequence``, absent when none ran: not configured, or not in DP)."""
-    extra: dict[str, Any] = {} if request is None else {"request": {
-        "seq": int(request.seq), "t_s": float(request.t_s), "outcome": request.outcome, "detail": request.detail[:256]}}
+    outcome of the last operator request (``request``, absent before the first) and of each one taken lately
+    (``requests``, oldest first, the last 16 at most; absent when none), and the last worst-case failure check
+    (``consequence``, absent when none ran: not configured, or not in DP)."""
+    extra: dict[str, Any] = {} if request is None else {"request": _request_outcome(request)}
+    if requests:
+        extra["requests"] = [_request_outcome(outcome) for outcome in requests[-16:]]
     if consequence is not None:
         extra["consequence"] = {
             "t_s": float(consequence.t_s), "demand_b": _vec3(consequence.demand_b, _FORCE),
@@ -1204,6 +1210,11 @@ def status_payload(*, t_s: float, seq: int, mode: str, sensors: Sequence[SensorH
         "thrusters": [{"name": t.name, "available": bool(t.available), "detail": t.detail} for t in thrusters],
         **extra,
     })
+
+
+def _request_outcome(outcome: RequestOutcome) -> dict[str, Any]:
+    return {"seq": int(outcome.seq), "t_s": float(outcome.t_s), "outcome": outcome.outcome,
+            "detail": outcome.detail[:256]}
 
 
 def setpoint_payload(*, t_s: float, seq: int, mode: str | None = None, north_m: float | None = None,

@@ -2,7 +2,7 @@
 process, links down: it runs in standby and publishes every cycle) and the command on real Zenoh sessions on
 127.0.0.1: an applied set-point (exit 0, what is in force), a refused mode (exit 1, why), a relative move
 resolved against the set-point in force, a latched thruster failure cleared, requests refused before sending
-(exit 2, nothing reaches the controller), and no controller (exit 1)."""
+(exit 2, nothing reaches the controller), no controller (exit 1), and two consoles sending at once."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ import json
 import subprocess
 import sys
 import threading
+import time
 from collections.abc import Iterator
 from typing import Any
 
@@ -22,7 +23,10 @@ from dpcontrol.runtime.config import parse_config
 from dpcontrol.runtime.daemon import Daemon
 from dpcontrol.setpoint import run_setpoint
 from interfaces.systemd import SystemdNotifier
+from interfaces.zenoh import schemas
+from interfaces.zenoh.config import ZenohConfig
 from interfaces.zenoh.loopback import free_tcp_port
+from interfaces.zenoh.node import Inbox, ZenohNode
 
 pytestmark = pytest.mark.hil
 
@@ -93,6 +97,48 @@ def test_a_thruster_reset(controller: tuple[Daemon, str], capsys: pytest.Capture
     code, out, err = _ask(endpoint, "--reset-thruster", "stern_tunnel", capsys=capsys)
     assert code == 1 and out == ""
     assert "refused: reset_thruster 'stern_tunnel': no such thruster (bow_tunnel, main_port, main_starboard)" in err
+
+
+def test_two_consoles_sending_in_one_cycle_each_get_their_answer(controller: tuple[Daemon, str]) -> None:
+    """The bridge and the shore send at once: each gets the answer to its own request. Two requests put back to
+    back on one publisher (microseconds apart: one cycle takes both, bar a cycle starting between them; each has
+    its answer either way), then two `run_setpoint` threads at once."""
+    daemon, endpoint = controller
+    node = ZenohNode(ZenohConfig(connect=(endpoint,)), VESSEL)
+    try:
+        seen: dict[int, dict[str, Any]] = {}
+        statuses: Inbox[Any] = Inbox(maxlen=1000)
+        node.subscribe("status", statuses, parse=lambda payload: schemas.parse_message("status", payload))
+        publisher = node.publisher("setpoint")
+        assert publisher.wait_matched(float(TIMEOUT))
+        assert publisher.put(schemas.setpoint_payload(t_s=1.0, seq=901, mode="auto_position"))  # links down: refused
+        assert publisher.put(schemas.setpoint_payload(t_s=1.0, seq=902, heading_deg=20.0))
+        deadline = time.monotonic() + float(TIMEOUT)
+        while not {901, 902} <= seen.keys() and time.monotonic() < deadline:
+            received = statuses.get(0.5)
+            for outcome in ([] if received is None else received.message.get("requests") or ()):
+                seen[outcome["seq"]] = outcome
+    finally:
+        node.close()
+    assert seen[901]["outcome"] == "refused" and seen[901]["detail"].startswith("auto_position refused: ")
+    assert seen[902]["outcome"] == "applied" and "heading 20.0°" in seen[902]["detail"]
+    assert daemon.controller.mode.value == "standby"
+
+    results: dict[str, tuple[int, str, str]] = {}
+
+    def console(name: str, fields: dict[str, Any]) -> None:
+        out, err = io.StringIO(), io.StringIO()
+        code = run_setpoint(VESSEL, fields, connect=(endpoint,), timeout_s=float(TIMEOUT), out=out, err=err)
+        results[name] = (code, out.getvalue(), err.getvalue())
+
+    consoles = [threading.Thread(target=console, args=("bridge", {"move_north_m": 1.0})),
+                threading.Thread(target=console, args=("shore", {"mode": "auto_heading"}))]
+    for thread in consoles:
+        thread.start()
+    for thread in consoles:
+        thread.join(2 * float(TIMEOUT))
+    assert results["bridge"][0] == 0 and results["bridge"][1].startswith(f"{VESSEL}: applied: "), results
+    assert results["shore"][0] == 1 and "refused: auto_heading refused: " in results["shore"][2], results
 
 
 def test_invalid_requests_are_refused_before_sending(controller: tuple[Daemon, str],

@@ -75,3 +75,64 @@ def test_a_reset_request_is_valid_alone_and_travels_in_the_setpoint_message() ->
     rejected = schemas.parse_setpoint(b'{"schema": "dpcontrol.setpoint/1", "t_s": 1, "seq": 3, '
                                       b'"reset_thruster": "bow tunnel"}')
     assert isinstance(rejected, schemas.Rejected) and "reset_thruster" in rejected.detail
+
+
+def test_requests_taken_in_one_cycle_each_get_their_own_answer() -> None:
+    """Two consoles (the bridge and the shore) may send in the same cycle. Each request is answered under its own
+    ``seq`` (``status.requests``, the last second's): a refused mode is the refusal of the request that asked for
+    it, not of a set-point beside it, and a request whose mode a later one replaced says so. Before, the status
+    named the last request alone: the other sender waited for its answer until its time-out."""
+    controller = DpController(bench_config())
+    name = controller.thrusters[0].name
+    controller.step(1.0, requests=[
+        SetpointRequest(t_s=1.0, seq=11, mode="auto_position"),  # no estimate yet: refused
+        SetpointRequest(t_s=1.0, seq=12, north_m=3.0, east_m=4.0),
+        SetpointRequest(t_s=1.0, seq=13, reset_thruster="stern_jet"),  # no such thruster: refused
+        SetpointRequest(t_s=1.0, seq=14, reset_thruster=name)])
+    answers = {outcome.seq: outcome for outcome in controller.requests_since(1.0)}
+    assert list(answers) == [11, 12, 13, 14]
+    in_force = "mode standby, set-point 3.00 m N, 4.00 m E, heading 0.0°"
+    assert answers[11].outcome == "refused"
+    assert answers[11].detail == f"auto_position refused: no estimate yet (position and heading references needed); " \
+                                 f"{in_force}"
+    assert (answers[12].outcome, answers[12].detail) == ("applied", in_force)
+    assert answers[13].outcome == "refused" and answers[13].detail.startswith("reset_thruster 'stern_jet': no such")
+    assert answers[14].outcome == "applied"
+    assert answers[14].detail == f"{in_force}; {name} reset (no failure was latched)"
+    assert controller.last_request == answers[14]
+    # the alarm names every refusal of the cycle
+    alarm = next(a for a in controller.alarms.active() if a.code == "operator.request_refused")
+    assert "auto_position refused" in alarm.text and "stern_jet" in alarm.text
+
+    status = schemas.parse_message("status", status_payload(controller, controller.alarms, 1.0, 2))
+    assert not isinstance(status, schemas.Rejected)
+    assert [(r["seq"], r["outcome"]) for r in status["requests"]] == [(11, "refused"), (12, "applied"),
+                                                                      (13, "refused"), (14, "applied")]
+    assert status["request"]["seq"] == 14
+
+    # a mode replaced by a later request of the same cycle: both applied, the first says by what
+    controller.step(1.1, requests=[SetpointRequest(t_s=1.1, seq=21, mode="auto_heading"),
+                                   SetpointRequest(t_s=1.1, seq=22, mode="standby")])
+    first, second = controller.requests_since(1.1)
+    assert (first.seq, first.outcome, second.seq, second.outcome) == (21, "applied", 22, "applied")
+    assert first.detail.endswith("; mode standby requested after it in the same cycle (seq 22)")
+    assert not second.detail.endswith(")") and controller.mode is Mode.STANDBY
+
+    # the status lists the last second's requests only, and omits the list when there are none
+    status = schemas.parse_message("status", status_payload(controller, controller.alarms, 2.05, 3))
+    assert [r["seq"] for r in status["requests"]] == [21, 22]
+    status = schemas.parse_message("status", status_payload(controller, controller.alarms, 2.2, 4))
+    assert status["requests"] is None and status["request"]["seq"] == 22
+    assert b'"requests"' not in status_payload(controller, controller.alarms, 2.2, 5)
+
+
+def test_an_auto_engage_refusal_is_no_requests_refusal() -> None:
+    """``loop.auto_engage_s`` asks for DP without an operator request: a refusal then answers no request (and the
+    index of the last step's mode request is not reused)."""
+    controller = DpController(bench_config())
+    controller.step(1.0, requests=[SetpointRequest(t_s=1.0, seq=5, mode="standby")])
+    controller.request_mode("auto_position")  # as the auto-engage does, with no request this step
+    controller.step(1.1)
+    assert controller.last_request is not None and controller.last_request.seq == 5
+    assert controller.last_request.outcome == "applied"
+    assert controller.out.rejected_requests and controller.out.rejected_requests[0].startswith("auto_position refused")
