@@ -391,7 +391,7 @@ def _thrusters_panel(state: MonitorState) -> Panel:
 
 def _worst_case_line(check: Any) -> Text | None:
     """The last worst-case failure check (``status.consequence``): per failure group, whether the thrusters left
-    would hold the demand and how hard the busiest of them would work; nothing when no check ran."""
+    would hold the demand and how hard the busiest of them would work (and which); nothing when no check ran."""
     groups = _get(check, "groups")
     if not isinstance(groups, list):
         return None
@@ -401,7 +401,10 @@ def _worst_case_line(check: Any) -> Text | None:
         utilisation = _number(_get(group, "utilisation"))
         line.append(f"  {_text(_get(group, 'name'), 20)} ")
         if holds is True:
+            busiest = _get(group, "busiest")
             share = "" if utilisation is None else f" {100.0 * utilisation:.0f} %"
+            if share and isinstance(busiest, str):
+                share = f" ({_text(busiest, 20)}{share})"
             line.append("holds" + share, style="yellow" if utilisation is not None and utilisation >= 0.9 else "green")
         else:
             line.append("WOULD NOT HOLD" if holds is False else _DASH, style="bold red" if holds is False else "dim")

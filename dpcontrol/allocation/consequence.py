@@ -59,12 +59,15 @@ class FailureOutcome:
         Demand not produced ``[N, N, N·m]`` (body axes).
     utilisation : float
         Largest thrust of a remaining thruster as a share of its rating (1.0: one at its limit) [-].
+    busiest : str or None
+        The remaining thruster with that share (None: none left).
     """
 
     group: str
     holds: bool
     shortfall_b: np.ndarray
     utilisation: float
+    busiest: str | None = None
 
 
 class WorstCaseFailure:
@@ -92,6 +95,7 @@ class WorstCaseFailure:
     def __init__(self, thrusters: Sequence[ThrusterSpec], groups: Sequence[FailureGroup], *,
                  tolerance: float = 0.002, allocation: Mapping[str, object] | None = None) -> None:
         names = [spec.name for spec in thrusters]
+        self._names = names
         self.groups = tuple(groups)
         self._allocators = [ThrustAllocator(thrusters, STATIC_SAMPLE_TIME_S, **dict(allocation or {}))
                             for _ in self.groups]
@@ -115,8 +119,10 @@ class WorstCaseFailure:
             # reverse thrust against the reverse rating (a tunnel's astern side may be weaker)
             limit = np.where(thrust >= 0.0, self._rating, np.maximum(self._reverse, 1e-9))
             share = np.abs(thrust) / limit
-            utilisation = float(share[left].max()) if left.any() else float("inf")
+            busiest = int(np.argmax(np.where(left, share, -1.0))) if left.any() else None
+            utilisation = float("inf") if busiest is None else float(share[busiest])
             shortfall = result.shortfall_b.copy()
             holds = bool(left.any() and np.all(np.abs(shortfall) <= self.tolerance_b))
-            outcomes.append(FailureOutcome(group.name, holds, shortfall, utilisation))
+            outcomes.append(FailureOutcome(group.name, holds, shortfall, utilisation,
+                                           None if busiest is None else self._names[busiest]))
         return tuple(outcomes)

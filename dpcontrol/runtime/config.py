@@ -111,7 +111,10 @@ class ConsequenceSettings:
     tunnel, would alarm whenever DP needs sway). In DP (``auto_position``) the commanded force is averaged
     over ``averaging_s``; every ``period_s`` that average × ``demand_factor`` (an allowance for the waves
     and gusts around it) is allocated to the thrusters left after each group's loss; a group whose loss
-    would leave part of it uncovered for ``persist_s`` raises ``consequence.<group>``.
+    would leave part of it uncovered for ``persist_s`` raises ``consequence.<group>``. With
+    ``utilisation_warning`` set, a group whose loss would hold but leave a thruster working at or above that
+    share of its rating for ``persist_s`` raises the warning ``consequence.<group>.utilisation`` (the margin
+    an operating guideline asks for, before the alarm).
     """
 
     groups: tuple[FailureGroup, ...] = ()
@@ -120,6 +123,7 @@ class ConsequenceSettings:
     demand_factor: float = 1.25
     persist_s: float = 10.0
     tolerance: float = 0.002
+    utilisation_warning: float | None = None
 
 
 @dataclass(frozen=True)
@@ -518,6 +522,8 @@ def _parse_consequence(section: Section, vessel: VesselData) -> ConsequenceSetti
         demand_factor=section.number("demand_factor", 1.25, minimum=1.0),
         persist_s=section.number("persist_s", 10.0, minimum=0.0),
         tolerance=section.number("tolerance", 0.002, minimum=0.0, maximum=0.05),
+        utilisation_warning=section.optional_number("utilisation_warning", minimum=0.0, maximum=1.0,
+                                                    exclusive_minimum=True),
     )
     section.finish()
     return settings

@@ -6,7 +6,11 @@ wave-frequency part the wave filter already keeps out of τ. Once DP has run tha
 the average × ``demand_factor`` is checked against each failure group
 (:class:`~dpcontrol.allocation.consequence.WorstCaseFailure`). A group whose loss would leave part of the
 demand uncovered for ``persist_s`` raises the alarm ``consequence.<group>``; it clears after as long holding.
-Outside DP the check rests and its alarms clear (the demand of another mode says nothing of station keeping).
+With ``utilisation_warning`` set, one whose loss would hold but with a remaining thruster at or above that share
+of its rating raises the warning ``consequence.<group>.utilisation`` the same way: the margin is going before
+the position would be. Outside DP the check rests and its alarms clear (the demand of another mode says nothing
+of station keeping). The average and how long it has run survive a restart through the persisted state, so a
+resumed controller checks at once instead of after another ``averaging_s``.
 
 The daemon runs it after the cycle's command is published (a few QP solves once a second must not delay a
 command); the lockstep simulation after each step. No clock of its own: time comes in with each call.
@@ -57,7 +61,7 @@ class ConsequenceMonitor:
     settings : ConsequenceSettings
         Must have at least one group.
     alarms : AlarmRegistry
-        Where ``consequence.<group>`` (severity alarm) is raised.
+        Where ``consequence.<group>`` (severity alarm) and ``consequence.<group>.utilisation`` (warning) are raised.
     allocation : mapping, optional
         The control loop's allocator settings.
     """
@@ -71,13 +75,16 @@ class ConsequenceMonitor:
         self.check = WorstCaseFailure(thrusters, settings.groups, tolerance=settings.tolerance,
                                       allocation=allocation)
         self._members = {group.name: ", ".join(group.thrusters) for group in settings.groups}
-        self._codes = [f"consequence.{group.name}" for group in settings.groups]
+        self._codes = [code for group in settings.groups
+                       for code in (f"consequence.{group.name}", f"consequence.{group.name}.utilisation")]
         self._mean_b = np.zeros(3)
         self._engaged_since: float | None = None
         self._last_t: float | None = None
         self._next_check = -math.inf
         # per group: whether its loss would hold at the last check, and since when [s] (None: no check yet)
         self._verdict: dict[str, tuple[bool, float] | None] = dict.fromkeys(self._members)
+        # the same for "it holds, with a thruster at or above utilisation_warning"
+        self._busy: dict[str, tuple[bool, float] | None] = dict.fromkeys(self._members)
         self.last: ConsequenceReport | None = None
 
     @property
@@ -111,6 +118,8 @@ class ConsequenceMonitor:
         self.last = ConsequenceReport(t_s, demand, outcomes)
         for outcome in outcomes:
             self._judge(t_s, outcome, demand)
+            if self.settings.utilisation_warning is not None:
+                self._judge_margin(t_s, outcome, self.settings.utilisation_warning)
         return self.last
 
     def _judge(self, t_s: float, outcome: FailureOutcome, demand_b: np.ndarray) -> None:
@@ -135,6 +144,25 @@ class ConsequenceMonitor:
                     f"{demand_b[2] / 1e3:.1f} kN·m)")
             self.alarms.raise_(t_s, code, Severity.ALARM, text)
 
+    def _judge_margin(self, t_s: float, outcome: FailureOutcome, limit: float) -> None:
+        """``consequence.<group>.utilisation``: the group's loss would hold, but only with a thruster at or above
+        ``limit`` of its rating, for ``persist_s`` (a loss that would not hold is the alarm's, not this)."""
+        group = outcome.group
+        busy = outcome.holds and outcome.utilisation >= limit
+        verdict = self._busy[group]
+        if verdict is None or verdict[0] != busy:
+            self._busy[group] = verdict = (busy, t_s)
+        code = f"consequence.{group}.utilisation"
+        if t_s - verdict[1] < self.settings.persist_s:
+            return
+        if not busy:
+            self.alarms.clear(t_s, code)
+            return
+        self.alarms.raise_(t_s, code, Severity.WARNING,
+                           f"worst-case failure: losing {group} ({self._members[group]}) would hold, with "
+                           f"{outcome.busiest} at {100.0 * outcome.utilisation:.0f} % of its rating "
+                           f"(warning from {100.0 * limit:.0f} %)")
+
     def _rest(self, t_s: float) -> None:
         """Out of DP: the check rests, its alarms clear, the average starts again at the next engagement."""
         for code in self._codes:
@@ -142,4 +170,23 @@ class ConsequenceMonitor:
         self._engaged_since = self._last_t = None
         self._next_check = -math.inf
         self._verdict = dict.fromkeys(self._members)
+        self._busy = dict.fromkeys(self._members)
         self.last = None
+
+    # ------------------------------------------------------------------ persistence
+    def state_dict(self, t_s: float) -> dict[str, object] | None:
+        """The average and how long it has run [s] at ``t_s`` [s] (JSON-able); None outside DP (nothing to keep)."""
+        if self._engaged_since is None or self._last_t is None:
+            return None
+        return {"mean_b": self._mean_b.tolist(), "averaged_s": t_s - self._engaged_since}
+
+    def load_state_dict(self, state: dict[str, object], t_s: float) -> None:
+        """Resume the average of :meth:`state_dict` at ``t_s`` [s] (the controller resumed in DP): checks go on
+        at once when it had run ``averaging_s``. The alarms' persistence starts again (their registry is new)."""
+        mean = np.asarray(state["mean_b"], dtype=float).reshape(3)
+        averaged = float(state["averaged_s"])  # type: ignore[arg-type]
+        if not (np.all(np.isfinite(mean)) and math.isfinite(averaged) and averaged >= 0.0):
+            raise ValueError(f"consequence state: mean_b {mean.tolist()}, averaged_s {averaged}")
+        self._mean_b[:] = mean
+        self._engaged_since = t_s - averaged
+        self._last_t = t_s

@@ -95,7 +95,7 @@ def status_payload(controller: DpController, alarms: AlarmRegistry, t_s: float, 
     report = None if controller.consequence is None else controller.consequence.last
     consequence = None if report is None else schemas.WorstCaseCheck(
         report.t_s, tuple(report.demand_b.tolist()),
-        tuple(schemas.FailureGroupOutcome(o.group, o.holds, o.utilisation) for o in report.outcomes))
+        tuple(schemas.FailureGroupOutcome(o.group, o.holds, o.utilisation, o.busiest) for o in report.outcomes))
     return schemas.status_payload(t_s=t_s, seq=seq, mode=controller.mode.value, sensors=sensors,
                                   alarms=listed, cycle=cycle, thrusters=thrusters, request=controller.last_request,
                                   requests=controller.requests_since(t_s - RECENT_REQUESTS_S) if

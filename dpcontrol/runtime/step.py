@@ -634,6 +634,9 @@ class DpController:
                 state["accel_ff_n"] = list(self._accel_ff_n)
         if self.controller is not None:
             state["controller"] = self.controller.state_dict()
+        consequence = None if self.consequence is None else self.consequence.state_dict(t_s)
+        if consequence is not None:
+            state["consequence"] = consequence
         return state
 
     def load_state_dict(self, state: dict[str, Any], t_s: float) -> None:
@@ -667,4 +670,6 @@ class DpController:
             self.mode = mode
             self._requested_mode = mode
             self._engaged_once = True
+            if self.consequence is not None and "consequence" in state:
+                self.consequence.load_state_dict(state["consequence"], t_s)
         self._last_t_s = t_s

@@ -73,7 +73,7 @@ Schemas (version 1; ``?`` = may be ``null``)
     thrusters: [{name, available, detail}]
     request?: {seq, t_s, outcome (applied|refused), detail}   the last operator request taken
     requests?: [{seq, t_s, outcome, detail}]   every request taken in the last second, oldest first (≤ 16)
-    consequence?: {t_s, demand_b: {x_n, y_n, n_nm}, groups: [{name, holds, utilisation?}]}   worst-case failure check
+    consequence?: {t_s, demand_b: {x_n, y_n, n_nm}, groups: [{name, holds, utilisation?, busiest?}]}   worst case
 
 ``dpcontrol.setpoint/1`` (operator → daemon, ``dp/<vessel>/setpoint``) — see :func:`parse_setpoint`;
 here ``?`` means the field may be left out (or be ``null``: not given)::
@@ -503,7 +503,8 @@ STATUS = Schema("dpcontrol.status", 1, Record({
     "requests": Array(_REQUEST_OUTCOME, max_len=16),
     "consequence": Record({"t_s": Number(0.0, _MAX_TIME_S), "demand_b": _force(),
                            "groups": Array(Record({"name": _NAME, "holds": Flag(),
-                                                   "utilisation": Number(0.0, 1e6, nullable=True)}),
+                                                   "utilisation": Number(0.0, 1e6, nullable=True),
+                                                   "busiest": _NAME}, optional=("busiest",)),
                                            unique="name", max_len=64)}),
 }, optional=("request", "requests", "consequence")))
 
@@ -1154,12 +1155,13 @@ class RequestOutcome:
 
 @dataclass(frozen=True, slots=True)
 class FailureGroupOutcome:
-    """Whether the thrusters left after one failure group's loss would hold the demand, and the largest thrust of
-    those left as a share of its rating [-] (None: none left)."""
+    """Whether the thrusters left after one failure group's loss would hold the demand, the largest thrust of
+    those left as a share of its rating [-] (None: none left), and which thruster that is."""
 
     name: str
     holds: bool
     utilisation: float | None
+    busiest: str | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -1195,8 +1197,8 @@ def status_payload(*, t_s: float, seq: int, mode: str, sensors: Sequence[SensorH
     if consequence is not None:
         extra["consequence"] = {
             "t_s": float(consequence.t_s), "demand_b": _vec3(consequence.demand_b, _FORCE),
-            "groups": [{"name": g.name, "holds": bool(g.holds), "utilisation": _num(g.utilisation)}
-                       for g in consequence.groups]}
+            "groups": [{"name": g.name, "holds": bool(g.holds), "utilisation": _num(g.utilisation),
+                        **({} if g.busiest is None else {"busiest": g.busiest})} for g in consequence.groups]}
     return _encode({
         "schema": STATUS.id, "t_s": float(t_s), "seq": int(seq), "mode": mode,
         "sensors": [{"name": s.name, "kind": s.kind, "state": s.state, "age_s": _num(s.age_s),

@@ -45,7 +45,7 @@ VALID: dict[str, Any] = {
     "thruster_monitor": {"feedback_timeout_s": 2, "mismatch_fraction": 0.25, "mismatch_persist_s": 5,
                          "shortfall_fraction": 0.1, "shortfall_persist_s": 10},
     "consequence": {"groups": {"bus_a": ["bow", "az"]}, "period_s": 1, "averaging_s": 30, "demand_factor": 1.25,
-                    "persist_s": 10, "tolerance": 0.002},
+                    "persist_s": 10, "tolerance": 0.002, "utilisation_warning": 0.9},
 }
 
 SENSOR_FIELDS = {  # (sensor index, field) → bad value

@@ -124,6 +124,47 @@ def test_a_non_finite_force_is_kept_out_of_the_average() -> None:
     assert monitor.last.demand_b == pytest.approx([125e3, 0.0, 0.0])
 
 
+def test_a_loss_that_holds_with_little_margin_is_a_warning() -> None:
+    """``utilisation_warning``: a group whose loss would hold, but with a remaining thruster at or above that share
+    of its rating for ``persist_s``, raises ``consequence.<group>.utilisation`` (warning) naming the thruster;
+    a loss that would not hold is the alarm's alone."""
+    monitor, alarms = _monitor(utilisation_warning=0.5)
+    _drive(monitor, 0.0, 80.0, "auto_position", [200e3, 0.0, 0.0])  # demand 250 kN ahead
+    outcomes = {o.group: o for o in monitor.last.outcomes}
+    assert outcomes["bus_a"].busiest == "azimuth_starboard" and outcomes["bus_a"].utilisation > 0.7
+    assert outcomes["bow_room"].utilisation < 0.4  # two azimuths left, each at a third
+    assert [(a.code, a.severity, a.since_t_s) for a in alarms.active()] == [
+        ("consequence.bus_a.utilisation", Severity.WARNING, 40.0)]  # first check at 30 s, 10 s of it
+    assert alarms.active()[0].text == ("worst-case failure: losing bus_a (bow_tunnel_1, azimuth_port) would hold, "
+                                       "with azimuth_starboard at 72 % of its rating (warning from 50 %)")
+    _drive(monitor, 80.0, 300.0, "auto_position", [100e3, 0.0, 0.0])  # the load halves: 36 % left
+    assert not alarms.active()
+    # a beam load: the bow room's loss would not hold (the alarm, not also this warning); bus_a's at 75 %
+    _drive(monitor, 300.0, 500.0, "auto_position", [0.0, 150e3, 0.0])
+    assert sorted(a.code for a in alarms.active()) == ["consequence.bow_room", "consequence.bus_a.utilisation"]
+    _drive(monitor, 500.0, 501.0, "standby", [0.0, 0.0, 0.0])  # outside DP every alarm of the check clears
+    assert not alarms.active()
+
+
+def test_a_restart_resumes_the_average() -> None:
+    """The persisted state carries the average and how long it ran: a controller resumed in DP checks at its first
+    cycle instead of averaging ``averaging_s`` again, with the demand it had (issue 9 §4's bumpless restart)."""
+    before, _alarms = _monitor()
+    _drive(before, 0.0, 45.0, "auto_position", [0.0, 150e3, 0.0])
+    state = before.state_dict(44.9)
+    assert state is not None and state["averaged_s"] == pytest.approx(44.9)
+    after, _alarms = _monitor()
+    after.load_state_dict(state, 1000.0)  # (another process's clock)
+    report = after.update(1000.1, "auto_position", np.array([0.0, 150e3, 0.0]), ALL)
+    assert report is not None and report.demand_b == pytest.approx(before.last.demand_b, rel=1e-6)
+    fresh, _alarms = _monitor()
+    assert fresh.state_dict(0.0) is None  # outside DP: nothing to keep
+    for broken in ({"mean_b": [math.nan, 0.0, 0.0], "averaged_s": 3.0}, {"mean_b": [0.0, 0.0, 0.0], "averaged_s": -1},
+                   {"mean_b": [0.0, 0.0], "averaged_s": 3.0}):
+        with pytest.raises(ValueError):
+            fresh.load_state_dict(broken, 0.0)  # (the daemon then starts cold)
+
+
 CONFIG: dict[str, Any] = {
     "vessel_id": "osv1", "vessel": "supply",
     "transports": [{"name": "serial0", "protocol": "nmea0183", "port": "/dev/null"}],
@@ -141,6 +182,15 @@ def test_configuration() -> None:
     del off["consequence"]
     assert parse_config(off).consequence.groups == ()  # off unless groups are configured
     assert DpController(parse_config(off)).check_consequences(0.0) is None
+    assert settings.utilisation_warning is None  # off unless given
+    margin = copy.deepcopy(CONFIG)
+    margin["consequence"]["utilisation_warning"] = 0.8
+    assert parse_config(margin).consequence.utilisation_warning == 0.8
+    for wrong in (0, 1.5, "high"):
+        margin["consequence"]["utilisation_warning"] = wrong
+        with pytest.raises(ConfigError) as error:
+            parse_config(margin)
+        assert error.value.path == "consequence.utilisation_warning"
 
 
 @pytest.mark.parametrize(("groups", "path", "expected"), [
@@ -175,3 +225,4 @@ def test_the_status_carries_the_last_check() -> None:
     assert status["consequence"]["t_s"] == 60.0
     assert status["consequence"]["demand_b"]["y_n"] == pytest.approx(1.25 * 150e3)
     assert [(g["name"], g["holds"]) for g in status["consequence"]["groups"]] == [("bus_a", True), ("bow_room", False)]
+    assert status["consequence"]["groups"][0]["busiest"] in ("bow_tunnel_2", "azimuth_starboard")  # what bus_a leaves

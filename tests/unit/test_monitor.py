@@ -49,8 +49,9 @@ def _payloads(seq: int = 1) -> dict[str, bytes]:
             cycle=sc.CycleTiming(0.1, 142.0, 187.0, 3, 1.5),
             thrusters=[sc.ThrusterAvailability("bow", True), sc.ThrusterAvailability("stern", False, "trip")],
             request=sc.RequestOutcome(77, t - 12.0, "refused", "auto_heading refused: no estimate yet; mode standby"),
-            consequence=sc.WorstCaseCheck(t - 0.5, (0.0, 150e3, 0.0), (sc.FailureGroupOutcome("bus_a", True, 0.58),
-                                                                      sc.FailureGroupOutcome("bow_room", False, 1.0)))),
+            consequence=sc.WorstCaseCheck(t - 0.5, (0.0, 150e3, 0.0),
+                                          (sc.FailureGroupOutcome("bus_a", True, 0.58, "az_s"),
+                                           sc.FailureGroupOutcome("bow_room", False, 1.0)))),
         "command": sc.command_payload(t_s=t, seq=seq, mode="auto_position", names=["bow", "stern"],
                                       thrust_n=[12e3, -8e3], azimuth_rad=[math.pi / 2, 0.0]),
         "feedback": sc.feedback_payload(t_s=t, seq=seq, names=["bow", "stern"], thrust_n=[11.5e3, math.nan],
@@ -93,7 +94,7 @@ def test_render_shows_every_part() -> None:
     assert "p99 187 µs" in text and "missed 3" in text and "host steal 1.5 %" in text
     # the last operator request (dpcontrol setpoint's answer), its age in the controller's time
     assert "last request refused 12 s ago: auto_heading refused: no estimate yet; mode standby" in text
-    assert "worst case:  bus_a holds 58 %  bow_room WOULD NOT HOLD" in text  # the consequence analysis
+    assert "worst case:  bus_a holds (az_s 58 %)  bow_room WOULD NOT HOLD" in text  # the consequence analysis
 
 
 def test_render_with_no_data_at_all() -> None:
