@@ -104,6 +104,22 @@ class ThrusterMonitorSettings:
 
 
 @dataclass(frozen=True)
+class DeviationSettings:
+    """Position and heading deviation limits: the estimated low-frequency pose against the reference (the
+    guidance's desired pose of the moment, so a move along a travelling reference is no deviation). Above a
+    limit for ``persist_s``: ``position.deviation.warning`` / ``.alarm`` (in ``auto_position``),
+    ``heading.deviation.warning`` / ``.alarm`` (in ``auto_position`` and ``auto_heading``); cleared after
+    ``persist_s`` below :data:`~dpcontrol.runtime.deviation.CLEAR_FRACTION` of the limit. The defaults are a
+    full-scale vessel's (3 / 5 m, 3 / 5°); a model-scale vessel needs its own."""
+
+    position_warning_m: float = 3.0
+    position_alarm_m: float = 5.0
+    heading_warning_rad: float = math.radians(3.0)
+    heading_alarm_rad: float = math.radians(5.0)
+    persist_s: float = 1.0
+
+
+@dataclass(frozen=True)
 class ConsequenceSettings:
     """The worst-case failure check (consequence analysis) of a redundant (DP class 2/3) thruster layout.
 
@@ -194,6 +210,7 @@ class DaemonConfig:
     realtime: RealtimeSettings = field(default_factory=RealtimeSettings)
     replica: ReplicaSettings = field(default_factory=ReplicaSettings)
     consequence: ConsequenceSettings = field(default_factory=ConsequenceSettings)
+    deviation: DeviationSettings = field(default_factory=DeviationSettings)
 
     @property
     def sample_time_s(self) -> float:
@@ -460,6 +477,7 @@ def _parse(mapping: object, text: str, file: str | None) -> DaemonConfig:
     tm.finish()
 
     consequence = _parse_consequence(root.section("consequence"), vessel)
+    deviation = _parse_deviation(root.section("deviation"))
 
     zenoh = ZenohConfig.from_mapping(root.raw("zenoh", None), "zenoh")
 
@@ -485,7 +503,30 @@ def _parse(mapping: object, text: str, file: str | None) -> DaemonConfig:
     return DaemonConfig(vessel_id, vessel, datum, rate, initial_mode, auto_engage, tuple(transports), routes,
                         estimator, guidance, control, allocation, hub, fallback, monitor, zenoh, recorder, state,
                         source_text=text, source_file=file, realtime=realtime, replica=replica,
-                        consequence=consequence)
+                        consequence=consequence, deviation=deviation)
+
+
+def _parse_deviation(section: Section) -> DeviationSettings:
+    """``deviation:``: warning and alarm limits of position [m] and heading [deg], each alarm limit above its
+    warning limit, and the persistence [s]."""
+    limits = {key: section.number(key, default, minimum=0.0, exclusive_minimum=True)
+              for key, default in (("position_warning_m", 3.0), ("position_alarm_m", 5.0),
+                                   ("heading_warning_deg", 3.0), ("heading_alarm_deg", 5.0))}
+    for quantity, unit in (("position", "m"), ("heading", "deg")):
+        warning, alarm = limits[f"{quantity}_warning_{unit}"], limits[f"{quantity}_alarm_{unit}"]
+        if alarm <= warning:
+            raise ConfigError(join(section.path, f"{quantity}_alarm_{unit}"),
+                              f"more than {quantity}_warning_{unit} ({warning:g} {unit})", alarm)
+    if limits["heading_alarm_deg"] >= 180.0:
+        raise ConfigError(join(section.path, "heading_alarm_deg"), "less than 180 deg", limits["heading_alarm_deg"])
+    settings = DeviationSettings(
+        position_warning_m=limits["position_warning_m"], position_alarm_m=limits["position_alarm_m"],
+        heading_warning_rad=math.radians(limits["heading_warning_deg"]),
+        heading_alarm_rad=math.radians(limits["heading_alarm_deg"]),
+        persist_s=section.number("persist_s", 1.0, minimum=0.0),
+    )
+    section.finish()
+    return settings
 
 
 def _parse_consequence(section: Section, vessel: VesselData) -> ConsequenceSettings:

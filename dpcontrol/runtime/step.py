@@ -40,6 +40,7 @@ from dpcontrol.models.schema import ConfigError
 from dpcontrol.runtime.alarms import AlarmRegistry, Severity
 from dpcontrol.runtime.config import DaemonConfig
 from dpcontrol.runtime.consequence import ConsequenceMonitor, ConsequenceReport
+from dpcontrol.runtime.deviation import DeviationMonitor
 from dpcontrol.runtime.estimators import WAVE_FILTER_KINDS, MassAdaptiveEstimator, make_estimator
 from dpcontrol.runtime.hub import HubOutput, SensorHub
 from dpcontrol.runtime.thrusters import ThrusterFeedback, ThrusterMonitor
@@ -182,6 +183,7 @@ class DpController:
         # CAPABILITY_FLOOR × the fleet's capability per DOF, as Python floats (constant; _capability_alarm)
         self._capability_floor = (CAPABILITY_FLOOR * self.allocator.capability_scale).tolist()
         self.monitor = ThrusterMonitor(vessel.thrusters, config.thruster_monitor, self.alarms)
+        self.deviation = DeviationMonitor(config.deviation, self.alarms)  # position/heading deviation alarms
         # this step's requests, each as (seq, why it was refused, what it did beyond the mode and set-point), and
         # the index of the one whose mode is the step's requested mode (a mode refusal is that request's)
         self._taken: list[tuple[int, list[str], list[str]]] = []
@@ -424,6 +426,10 @@ class DpController:
         if self.controller is not None and self.mode is not Mode.STANDBY:
             self.controller.notify_achieved(out.tau_achieved_b)
         self._capability_alarm(t_s)
+        reference = out.reference
+        estimate = out.estimate
+        self.deviation.update(t_s, self.mode.value, None if estimate is None else estimate.eta_hat_n,
+                              None if reference is None else reference.eta_d_n)
         if clock:
             t5 = clock()
             self.stage_us.update(hub=(t1 - t0) * 1e6, estimator=(t2 - t1) * 1e6, control=(t3 - t2) * 1e6,

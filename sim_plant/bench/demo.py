@@ -168,7 +168,7 @@ def prepare(scenario_path: Path, run_dir: Path, *, realtime: bool = False) -> tu
     if priority is not None:
         config["loop"]["realtime_priority"] = priority
     for key in ("estimator", "control", "guidance", "allocation", "hub", "fallback", "thruster_monitor",
-                "consequence"):
+                "consequence", "deviation"):
         if key in controller:
             config[key] = controller[key]
     if config["datum"] is None:

@@ -55,6 +55,10 @@ def test_case12_far_setpoint_is_a_rate_limited_reference_without_a_force_spike(f
     assert np.all(moving <= baseline + drives_per_step), (moving, baseline, drives_per_step)
     assert run.thrust_rate_excess_n() <= 1e-6
     assert np.nanmax(run.position_error_m()[run.between(60.0, 300.0)]) <= 5.0  # the vessel follows the reference
+    # the deviation alarms watch the reference, not the set-point 1 km away: following it is no deviation
+    assert 1000.0 - north[-1] > 500.0
+    for code in ("position.deviation.warning", "position.deviation.alarm", "heading.deviation.warning"):
+        assert run.events(code) == [], code
 
 
 GARBAGE = [

@@ -115,6 +115,9 @@ def test_case10_capability_shortfall_alarm_when_the_weather_exceeds_what_is_left
     assert raised is not None and raised - 120.0 <= monitor.shortfall_persist_s + 1.0
     assert "thrusters.capability" in run.status.active_codes(raised)
     assert not any(r for t, r in run.events("thrusters.capability") if t < 120.0)  # none while intact
+    # what the operator sees of it: the heading goes (the alarm limit, 5°, within 10 s of the trip)
+    heading = _raised(run, "heading.deviation.alarm", 120.0)
+    assert heading is not None and heading - 120.0 <= 10.0
     wrong = _raised(run, "thruster.azimuth_starboard.unavailable", 200.0)
     assert wrong is not None and wrong - 200.0 <= monitor.mismatch_persist_s + 2.0
     assert np.all(run.thrust_n()[run.between(wrong + DT, 230.0), _index(run, "azimuth_starboard")] == 0.0)

@@ -1,0 +1,129 @@
+"""Position and heading deviation alarms (``dpcontrol/runtime/deviation.py``, ``deviation:``): the estimated
+low-frequency pose against the guidance's reference, a warning and an alarm limit each, a persistence, a
+hysteresis band, and the modes that watch each quantity."""
+
+from __future__ import annotations
+
+import copy
+import math
+from typing import Any
+
+import numpy as np
+import pytest
+
+from dpcontrol.bench import bench_config
+from dpcontrol.models.schema import ConfigError
+from dpcontrol.runtime.alarms import AlarmRegistry, Severity
+from dpcontrol.runtime.config import DeviationSettings, parse_config
+from dpcontrol.runtime.deviation import CLEAR_FRACTION, DeviationMonitor
+from dpcontrol.runtime.step import DpController
+
+REFERENCE = np.array([10.0, -5.0, math.radians(90.0)])
+
+
+def _monitor(**settings: Any) -> tuple[DeviationMonitor, AlarmRegistry]:
+    alarms = AlarmRegistry()
+    return DeviationMonitor(DeviationSettings(**settings), alarms), alarms
+
+
+def _hold(monitor: DeviationMonitor, t0_s: float, t1_s: float, offset: tuple[float, float, float],
+          mode: str = "auto_position") -> None:
+    """10 Hz steps from t0 to t1 (excluded) with the estimate ``offset`` [m, m, rad] from the reference."""
+    for k in range(round((t1_s - t0_s) * 10)):
+        monitor.update(t0_s + 0.1 * k, mode, REFERENCE + np.array(offset), REFERENCE)
+
+
+def _active(alarms: AlarmRegistry) -> list[tuple[str, Severity, float | None]]:
+    return sorted((a.code, a.severity, a.since_t_s) for a in alarms.active())
+
+
+def test_warning_then_alarm_after_the_persistence_and_clearing_below_the_band() -> None:
+    monitor, alarms = _monitor()  # 3 / 5 m, 3 / 5°, 1 s
+    _hold(monitor, 0.0, 10.0, (2.0, 2.0, 0.0))  # 2.83 m: inside the warning limit
+    assert not alarms.active() and monitor.position_m == pytest.approx(math.hypot(2.0, 2.0))
+    _hold(monitor, 10.0, 10.5, (3.0, 0.5, 0.0))  # 3.04 m for half a second: not yet
+    assert not alarms.active()
+    _hold(monitor, 10.5, 20.0, (3.0, 0.5, 0.0))
+    assert _active(alarms) == [("position.deviation.warning", Severity.WARNING, pytest.approx(11.0))]
+    assert alarms.active()[0].text == "position deviation 3.0 m from the reference (warning limit 3 m)"
+    _hold(monitor, 20.0, 30.0, (0.0, -5.5, 0.0))  # beyond the alarm limit: both up, the log shows the escalation
+    assert _active(alarms) == [("position.deviation.alarm", Severity.ALARM, pytest.approx(21.0)),
+                               ("position.deviation.warning", Severity.WARNING, pytest.approx(11.0))]
+    # back to 4.5 m: above 80 % of the alarm limit (the band): the alarm stays; below it for 1 s: cleared
+    _hold(monitor, 30.0, 40.0, (4.5, 0.0, 0.0))
+    assert alarms.is_active("position.deviation.alarm")
+    _hold(monitor, 40.0, 50.0, (3.9, 0.0, 0.0))
+    assert [a.code for a in alarms.active()] == ["position.deviation.warning"]
+    _hold(monitor, 50.0, 60.0, (0.8 * 3.0 - 0.01, 0.0, 0.0))
+    assert not alarms.active()
+    events = [(e.code, e.raised, round(e.t_s, 1)) for e in alarms.drain_events()]
+    assert events == [("position.deviation.warning", True, 11.0), ("position.deviation.alarm", True, 21.0),
+                      ("position.deviation.alarm", False, 41.0), ("position.deviation.warning", False, 51.0)]
+    assert CLEAR_FRACTION == 0.8
+
+
+def test_a_deviation_that_flickers_over_the_limit_is_not_raised() -> None:
+    monitor, alarms = _monitor(persist_s=2.0)
+    for k in range(300):  # 3.2 m and 2.9 m alternately each 0.5 s: never 2 s above
+        offset = 3.2 if (k // 5) % 2 == 0 else 2.9
+        monitor.update(0.1 * k, "auto_position", REFERENCE + np.array([offset, 0.0, 0.0]), REFERENCE)
+    assert not alarms.active()
+
+
+def test_heading_wraps_and_is_watched_in_auto_heading_too() -> None:
+    monitor, alarms = _monitor()
+    north = np.array([0.0, 0.0, math.radians(1.0)])
+    for k in range(30):  # 359° against 1°: 2°, not 358°
+        monitor.update(0.1 * k, "auto_heading", np.array([50.0, 0.0, math.radians(359.0)]), north)
+    assert monitor.heading_rad == pytest.approx(math.radians(2.0)) and not alarms.active()
+    assert monitor.position_m is None  # 50 m off: auto_heading does not hold position
+    for k in range(30, 60):
+        monitor.update(0.1 * k, "auto_heading", np.array([50.0, 0.0, math.radians(354.0)]), north)
+    assert _active(alarms) == [("heading.deviation.alarm", Severity.ALARM, pytest.approx(4.0)),
+                               ("heading.deviation.warning", Severity.WARNING, pytest.approx(4.0))]
+    assert "heading deviation 7.0 deg from the reference (alarm limit 5 deg)" in [a.text for a in alarms.active()]
+
+
+def test_standby_and_auto_heading_release_what_they_do_not_hold() -> None:
+    monitor, alarms = _monitor(persist_s=0.0)
+    _hold(monitor, 0.0, 1.0, (6.0, 0.0, math.radians(6.0)))
+    assert len(alarms.active()) == 4
+    _hold(monitor, 1.0, 1.1, (6.0, 0.0, math.radians(6.0)), mode="auto_heading")  # position no longer held
+    assert sorted(a.code for a in alarms.active()) == ["heading.deviation.alarm", "heading.deviation.warning"]
+    monitor.update(1.1, "standby", None, None)
+    assert not alarms.active() and monitor.heading_rad is None
+
+
+CONFIG: dict[str, Any] = {
+    "vessel_id": "osv1", "vessel": "supply",
+    "transports": [{"name": "serial0", "protocol": "nmea0183", "port": "/dev/null"}],
+    "sensors": [{"name": "gnss1", "kind": "position", "transport": "serial0"},
+                {"name": "gyro1", "kind": "heading", "transport": "serial0"}],
+}
+
+
+def test_configuration_and_its_errors() -> None:
+    assert parse_config(CONFIG).deviation == DeviationSettings()  # full-scale defaults: 3 / 5 m, 3 / 5°, 1 s
+    config = copy.deepcopy(CONFIG)
+    config["deviation"] = {"position_warning_m": 0.2, "position_alarm_m": 0.3, "heading_warning_deg": 4,
+                           "heading_alarm_deg": 8, "persist_s": 2}
+    settings = parse_config(config).deviation
+    assert (settings.position_warning_m, settings.position_alarm_m, settings.persist_s) == (0.2, 0.3, 2)
+    assert settings.heading_alarm_rad == pytest.approx(math.radians(8.0))
+    for wrong, path, expected in (
+            ({"position_alarm_m": 2.0}, "deviation.position_alarm_m", "more than position_warning_m (3 m)"),
+            ({"heading_warning_deg": 6}, "deviation.heading_alarm_deg", "more than heading_warning_deg"),
+            ({"heading_warning_deg": 170, "heading_alarm_deg": 190}, "deviation.heading_alarm_deg", "less than 180"),
+            ({"position_warning_m": 0}, "deviation.position_warning_m", ""),
+            ({"persist_s": -1}, "deviation.persist_s", ""),
+            ({"position_limit_m": 3}, "deviation.position_limit_m", "")):
+        config["deviation"] = wrong
+        with pytest.raises(ConfigError) as error:
+            parse_config(config)
+        assert error.value.path == path and expected in str(error.value), wrong
+
+
+def test_the_controller_watches_the_estimate_against_the_reference() -> None:
+    controller = DpController(bench_config())
+    controller.step(0.0)  # standby, no estimate: nothing watched
+    assert controller.deviation.position_m is None and controller.deviation.heading_rad is None
