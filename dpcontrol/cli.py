@@ -57,6 +57,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         stats["state"] = daemon.state_detail
         stats["scheduling"] = daemon.realtime_detail
         stats["replica"] = None if daemon.replica is None else daemon.replica.counters.as_dict()
+        stats["garbage_collection"] = None if daemon.garbage is None else daemon.garbage.as_dict()
         spinner = daemon.spinner
         stats["deadline_spin"] = None if spinner is None else {
             "window_ms": config.realtime.spin_s * 1e3, "slice_iterations": spinner.iterations,

@@ -317,6 +317,53 @@ class StepErrorLog:
         self._unlogged = 0
 
 
+class GarbagePacer:
+    """Python's cyclic garbage collection at a point of the control loop's choosing, not the allocator's.
+
+    Automatic collection starts wherever an allocation crosses the threshold: inside a control step, or in
+    a sensor reader's thread while it holds the GIL the step needs. On the HIL demo (2026-12-03) that was 59
+    collections of the youngest generation in 116 s, 63 µs median and 260 µs at most each, in about one cycle
+    in twenty. While a pacer is active, automatic collection is off and :meth:`collect` — called by the loop
+    once the cycle's command, status and record are out — collects as the interpreter would have (the same
+    thresholds, the same choice of generation), in the slack before the next deadline. Objects allocated by
+    every thread are collected there. The daemon freezes what start-up allocated (``gc.freeze``) first, so
+    even a full collection walks only what the loop has allocated since.
+    """
+
+    def __init__(self) -> None:
+        self.thresholds = gc.get_threshold()
+        self._was_enabled = gc.isenabled()
+        gc.disable()
+        self.collections = [0, 0, 0]  # per generation collected
+        self.max_us = [0.0, 0.0, 0.0]
+        self.total_us = 0.0
+
+    def collect(self) -> int | None:
+        """Collect if the interpreter would have by now; the generation collected, or None."""
+        count0, count1, count2 = gc.get_count()
+        t0, t1, t2 = self.thresholds
+        if t0 <= 0 or count0 < t0:
+            return None
+        generation = 2 if count1 >= t1 and count2 >= t2 else 1 if count1 >= t1 else 0
+        started = time.perf_counter()
+        gc.collect(generation)
+        elapsed_us = (time.perf_counter() - started) * 1e6
+        self.collections[generation] += 1
+        self.max_us[generation] = max(self.max_us[generation], elapsed_us)
+        self.total_us += elapsed_us
+        return generation
+
+    def close(self) -> None:
+        """Automatic collection as it was before."""
+        if self._was_enabled:
+            gc.enable()
+
+    def as_dict(self) -> dict[str, Any]:
+        """Collections per generation, the longest per generation [µs] and the total [ms] (``--stats-out``)."""
+        return {"collections": list(self.collections), "max_us": [round(v, 1) for v in self.max_us],
+                "total_ms": round(self.total_us / 1e3, 3)}
+
+
 @dataclass
 class LoopStats:
     """Cycle timing of the loop (µs), measured on the loop's monotonic clock.
@@ -400,6 +447,7 @@ class Daemon:
         self.controller = DpController(config, self.alarms)
         self.replica: ControllerReplica | None = None
         self.spinner: DeadlineSpinner | None = None  # (loop.deadline_spin_ms; built when the loop starts)
+        self.garbage: GarbagePacer | None = None  # (built when the loop starts: it turns automatic collection off)
         # the persisted state the controller resumed from (a copy taken before loading) and when
         self._resumed_state: tuple[dict[str, Any], float] | None = None
         self.stats = LoopStats(config.sample_time_s)
@@ -543,6 +591,8 @@ class Daemon:
         # the demo configuration, 1 µs after gc.freeze()).
         gc.collect()
         gc.freeze()
+        # from here on the loop collects garbage after each cycle's command, not wherever it piles up
+        garbage = self.garbage = GarbagePacer()
         # the CPUs the readers and Zenoh's threads may use (before the loop thread pins itself): with one, a
         # spinning loop would keep them off it, so the loop sleeps to its deadlines (dpcontrol/runtime/spin.py)
         shared_cpus = len(os.sched_getaffinity(0))
@@ -566,54 +616,58 @@ class Daemon:
             if spin > 0.0:
                 log.info("loop.deadline_spin_ms: not spinning on a single CPU (the sensor readers need it)")
             spin = 0.0  # sleep all the way to each deadline
-        while not self._stop_requested:
-            # The replica recomputes the last cycle just before this deadline: a check of the computation,
-            # and the primary's step then starts with warm caches. When the loop is already late it catches
-            # up after the next command instead (ControllerReplica.hold).
-            if replica is not None and replica.pending and self.clock() < deadline - lead:
-                if self._sleep_until(deadline - lead):
+        try:
+            while not self._stop_requested:
+                # The replica recomputes the last cycle just before this deadline: a check of the computation,
+                # and the primary's step then starts with warm caches. When the loop is already late it catches
+                # up after the next command instead (ControllerReplica.hold).
+                if replica is not None and replica.pending and self.clock() < deadline - lead:
+                    if self._sleep_until(deadline - lead):
+                        break
+                    replica.check(self.clock(), ahead=True)
+                # sleep to the spin window, spin the rest (dpcontrol/runtime/spin.py says why)
+                if self._sleep_until(deadline - spin) or (spinner is not None and spinner.until(deadline, self._stop)):
                     break
-                replica.check(self.clock(), ahead=True)
-            # sleep to the spin window, spin the rest (dpcontrol/runtime/spin.py says why)
-            if self._sleep_until(deadline - spin) or (spinner is not None and spinner.until(deadline, self._stop)):
-                break
-            start = self.clock()
-            if end is not None and start >= end:
-                break
-            jitter = start - deadline
-            measurements.clear()
-            links.clear()
-            try:
-                out, published = self._cycle(start, measurements, links)
-                if consecutive_errors:
-                    step_errors.recovered(consecutive_errors)
-                consecutive_errors = 0
-            except Exception as error:
-                self.stats.step_errors += 1
-                consecutive_errors += 1
-                step_errors.failed(start, error, consecutive_errors)
-                self.alarms.raise_(start, "controller.internal_error", Severity.CRITICAL,
-                                   "control step raised; commanding zero thrust")
-                self._publish_zero(start)
-                out, published = None, self.clock()
-            finish = self.clock()
-            self.stats.add((finish - start) * 1e6, (published - start) * 1e6, jitter * 1e6)
-            healthy = consecutive_errors < 3 and out is not None
-            if healthy:
-                if not ready_sent:
-                    self.notifier.ready()
-                    self.notifier.status("controlling")
-                    ready_sent = True
-                if watchdog_interval is not None:
-                    self.notifier.watchdog()
-            # Next deadline: the next multiple of the period in the future (missed ones counted).
-            deadline += period
-            behind = self.clock() - deadline
-            if behind > 0.0:
-                skipped = math.floor(behind / period) + 1
-                self.stats.missed_deadlines += skipped
-                deadline += skipped * period
-        self._shutdown()
+                start = self.clock()
+                if end is not None and start >= end:
+                    break
+                jitter = start - deadline
+                measurements.clear()
+                links.clear()
+                try:
+                    out, published = self._cycle(start, measurements, links)
+                    if consecutive_errors:
+                        step_errors.recovered(consecutive_errors)
+                    consecutive_errors = 0
+                except Exception as error:
+                    self.stats.step_errors += 1
+                    consecutive_errors += 1
+                    step_errors.failed(start, error, consecutive_errors)
+                    self.alarms.raise_(start, "controller.internal_error", Severity.CRITICAL,
+                                       "control step raised; commanding zero thrust")
+                    self._publish_zero(start)
+                    out, published = None, self.clock()
+                finish = self.clock()
+                self.stats.add((finish - start) * 1e6, (published - start) * 1e6, jitter * 1e6)
+                healthy = consecutive_errors < 3 and out is not None
+                if healthy:
+                    if not ready_sent:
+                        self.notifier.ready()
+                        self.notifier.status("controlling")
+                        ready_sent = True
+                    if watchdog_interval is not None:
+                        self.notifier.watchdog()
+                garbage.collect()  # (after the command, status and record: in the slack before the next deadline)
+                # Next deadline: the next multiple of the period in the future (missed ones counted).
+                deadline += period
+                behind = self.clock() - deadline
+                if behind > 0.0:
+                    skipped = math.floor(behind / period) + 1
+                    self.stats.missed_deadlines += skipped
+                    deadline += skipped * period
+            self._shutdown()
+        finally:
+            garbage.close()  # (automatic collection back, however the loop ended)
         return 0
 
     def _sleep_until(self, t_s: float) -> bool:

@@ -186,6 +186,7 @@ class _NoDaemon:
     realtime_detail = "normal scheduler"
     replica = None
     spinner = None
+    garbage = None
 
     def __init__(self, config: object) -> None:
         self.stats = LoopStats(0.1)
