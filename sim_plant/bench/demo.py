@@ -389,6 +389,10 @@ def describe_summary(summary: dict[str, Any]) -> list[str]:
         lines.append("control loop: no timing (the daemon wrote no stats)")
     lines.append(f"{describe_steal(summary.get('host_steal'))} during the run: the hypervisor's share of the "
                  "CPUs, 0 on dedicated hardware; on a virtual machine the timing tails grow with it")
+    raised = summary.get("alarms_raised")
+    if isinstance(raised, list):  # (the daemon's record: absent when it wrote none)
+        lines.append("alarms raised during the run: " + (", ".join(map(str, raised)) if raised else "none")
+                     + (" (the daemon's record: dpcontrol log export)" if raised else ""))
     for group, check in (summary.get("consequence") or {}).items():
         held, count, busiest = check.get("held", 0), check.get("checks", 0), check.get("utilisation_max")
         busy = "" if busiest is None else \

@@ -20,6 +20,7 @@ SUMMARY = {
     "position_error_window_s": [60.29, 120.6],
     "final_position_m": [1.9996, -0.0021], "final_setpoint_m": [2, 0], "final_setpoint_t_s": 20.0,
     "last_command": {"mode": "standby", "thrust_n": [0.0, 0.0, 0.0]}, "zero_thrust_commanded_last": True,
+    "alarms_raised": [],
 }
 
 
@@ -34,7 +35,11 @@ def test_a_good_run_reads_as_one() -> None:
     assert "loop thread: SCHED_FIFO 50" in text
     assert "host steal 1.16 %" in text
     assert "last command: zero thrust, mode standby" in text
+    assert "alarms raised during the run: none" in text  # (the deviation alarms would be among them)
     assert "NOT" not in text
+    strayed = describe_summary({**SUMMARY, "alarms_raised": ["position.deviation.alarm", "position.deviation.warning"]})
+    assert "alarms raised during the run: position.deviation.alarm, position.deviation.warning (the daemon's " \
+           "record: dpcontrol log export)" in strayed
 
 
 def test_a_short_run_says_its_error_includes_the_move() -> None:
