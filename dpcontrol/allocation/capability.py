@@ -25,9 +25,14 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from dpcontrol.allocation.allocator import ThrustAllocator
+from dpcontrol.allocation.allocator import AllocationResult, ThrustAllocator
 from dpcontrol.control.wind import WindFeedforward
 from dpcontrol.models.vessels import GRAVITY_MPS2, VesselData
+
+#: Time a static allocation may move the thrusters over [s]: long enough that no rate limit binds.
+STATIC_SAMPLE_TIME_S = 1.0e3
+#: Allocation calls of a static allocation: later calls start from the azimuths the earlier ones chose.
+STATIC_PASSES = 3
 
 # Model scales of the built-in model-scale vessels (CyberShip II: 1:70 supply vessel; Blue Lady: 1:24 VLCC).
 MODEL_SCALE = {"cybership2": 70.0, "blue_lady": 24.0}
@@ -74,13 +79,21 @@ def environment_load_b(vessel: VesselData, wind_from_rad: float, wind_speed_mps:
     return tau
 
 
+def static_allocation(allocator: ThrustAllocator, demand_b: np.ndarray,
+                      available: np.ndarray | None = None) -> AllocationResult:
+    """``demand_b`` ``[N, N, N·m]`` allocated to the (available) thrusters as they could settle to it: an
+    allocator built with :data:`STATIC_SAMPLE_TIME_S` (no rate limit binds), :data:`STATIC_PASSES` calls (later
+    calls start from the azimuths the earlier ones chose)."""
+    result = allocator.allocate(demand_b, available)
+    for _ in range(STATIC_PASSES - 1):
+        result = allocator.allocate(demand_b, available)
+    return result
+
+
 def holds(allocator: ThrustAllocator, load_b: np.ndarray, available: np.ndarray | None = None) -> bool:
-    """Whether the (available) thrusters can balance ``load_b`` (use an allocator with a long sample
-    time, so that rate limits do not bind)."""
-    result = None
-    for _ in range(3):  # later calls start from the azimuths the first one chose
-        result = allocator.allocate(-load_b, available)
-    return result is not None and not result.saturated
+    """Whether the (available) thrusters can balance ``load_b`` (:func:`static_allocation` of ``−load_b``; use
+    an allocator built with :data:`STATIC_SAMPLE_TIME_S`)."""
+    return not static_allocation(allocator, -load_b, available).saturated
 
 
 def capability_mps(vessel: VesselData, directions_rad: Sequence[float], *, max_wind_mps: float = 40.0,
@@ -93,7 +106,7 @@ def capability_mps(vessel: VesselData, directions_rad: Sequence[float], *, max_w
     available : array of bool, optional
         Thrusters in use (default all) — e.g. a failure case.
     """
-    allocator = ThrustAllocator(vessel.thrusters, 1.0e3)
+    allocator = ThrustAllocator(vessel.thrusters, STATIC_SAMPLE_TIME_S)
     out = np.zeros(len(directions_rad))
     for k, beta in enumerate(directions_rad):
         lo, hi = 0.0, max_wind_mps

@@ -8,7 +8,7 @@ failure group (the thrusters one failure takes out) is removed from the thruster
 demand is allocated to the rest with the same constrained QP as the control loop
 (:class:`~dpcontrol.allocation.allocator.ThrustAllocator`: Fossen 2021 ch. 11), statically: a long
 sample time, so that the rate limits do not bind, and a few passes so that the azimuths settle where
-the demand needs them (as :func:`~dpcontrol.allocation.capability.holds`).
+the demand needs them (:func:`~dpcontrol.allocation.capability.static_allocation`, as the capability plots).
 
 Pure computation: no clock, no I/O. The runtime (:mod:`dpcontrol.runtime.consequence`) averages the
 demand, runs this at a low rate off the control cycle's path, and raises the alarms.
@@ -22,12 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from dpcontrol.allocation.allocator import ThrustAllocator
+from dpcontrol.allocation.capability import STATIC_SAMPLE_TIME_S, static_allocation
 from dpcontrol.models.thrusters import ThrusterSpec
-
-#: Time the static allocation may move the thrusters over [s]: long enough that no rate limit binds.
-STATIC_SAMPLE_TIME_S = 1.0e3
-#: Allocation passes per evaluation: later passes start from the azimuths the earlier ones chose.
-PASSES = 3
 
 
 @dataclass(frozen=True, slots=True)
@@ -111,10 +107,7 @@ class WorstCaseFailure:
         outcomes = []
         for group, allocator, lost in zip(self.groups, self._allocators, self._lost, strict=True):
             left = available & ~lost
-            result = None
-            for _ in range(PASSES):
-                result = allocator.allocate(demand, left)
-            assert result is not None
+            result = static_allocation(allocator, demand, left)
             thrust = result.thrust_n
             # reverse thrust against the reverse rating (a tunnel's astern side may be weaker)
             limit = np.where(thrust >= 0.0, self._rating, np.maximum(self._reverse, 1e-9))

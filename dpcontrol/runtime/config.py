@@ -62,6 +62,10 @@ class SensorRoute:
 
 ESTIMATOR_KINDS = ("mmae", "kf", "rpem", "raw", "kalman_bucy", "heading_kf")
 CONTROL_KINDS = ("mrac", "pid", "autopilot")
+#: The sections that set how the controller behaves, as opposed to the installation (vessel_id, transports,
+#: sensors, zenoh, recorder, state, loop): what a scenario's ``controller:`` or an example configuration gives.
+CONTROLLER_SECTIONS = ("estimator", "control", "guidance", "allocation", "hub", "fallback", "thruster_monitor",
+                       "consequence", "deviation")
 
 
 @dataclass(frozen=True)

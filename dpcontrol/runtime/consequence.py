@@ -122,13 +122,17 @@ class ConsequenceMonitor:
                 self._judge_margin(t_s, outcome, self.settings.utilisation_warning)
         return self.last
 
+    def _settled(self, verdicts: dict[str, tuple[bool, float] | None], group: str, state: bool, t_s: float) -> bool:
+        """Record ``group``'s ``state`` at ``t_s`` [s] in ``verdicts``; True once unchanged for ``persist_s``."""
+        verdict = verdicts[group]
+        if verdict is None or verdict[0] != state:
+            verdicts[group] = verdict = (state, t_s)
+        return t_s - verdict[1] >= self.settings.persist_s
+
     def _judge(self, t_s: float, outcome: FailureOutcome, demand_b: np.ndarray) -> None:
         group = outcome.group
         code = f"consequence.{group}"
-        verdict = self._verdict[group]
-        if verdict is None or verdict[0] != outcome.holds:
-            self._verdict[group] = verdict = (outcome.holds, t_s)
-        if t_s - verdict[1] < self.settings.persist_s:
+        if not self._settled(self._verdict, group, outcome.holds, t_s):
             return
         if outcome.holds:
             self.alarms.clear(t_s, code)  # (nothing when not raised)
@@ -149,11 +153,8 @@ class ConsequenceMonitor:
         ``limit`` of its rating, for ``persist_s`` (a loss that would not hold is the alarm's, not this)."""
         group = outcome.group
         busy = outcome.holds and outcome.utilisation >= limit
-        verdict = self._busy[group]
-        if verdict is None or verdict[0] != busy:
-            self._busy[group] = verdict = (busy, t_s)
         code = f"consequence.{group}.utilisation"
-        if t_s - verdict[1] < self.settings.persist_s:
+        if not self._settled(self._busy, group, busy, t_s):
             return
         if not busy:
             self.alarms.clear(t_s, code)

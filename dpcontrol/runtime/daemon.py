@@ -98,8 +98,7 @@ def status_payload(controller: DpController, alarms: AlarmRegistry, t_s: float, 
         tuple(schemas.FailureGroupOutcome(o.group, o.holds, o.utilisation, o.busiest) for o in report.outcomes))
     return schemas.status_payload(t_s=t_s, seq=seq, mode=controller.mode.value, sensors=sensors,
                                   alarms=listed, cycle=cycle, thrusters=thrusters, request=controller.last_request,
-                                  requests=controller.requests_since(t_s - RECENT_REQUESTS_S) if
-                                  controller.recent_requests else (), consequence=consequence)
+                                  requests=controller.requests_since(t_s - RECENT_REQUESTS_S), consequence=consequence)
 
 
 def consequence_record(report: ConsequenceReport) -> dict[str, Any]:

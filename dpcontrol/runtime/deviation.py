@@ -34,15 +34,14 @@ _HEADING_MODES = frozenset({"auto_position", "auto_heading"})
 class _Limit:
     """One limit's judgement: since when the deviation has been above it, or below its clearing level."""
 
-    __slots__ = ("clear_below", "code", "label", "limit", "over_since", "raised", "severity", "under_since", "unit")
+    __slots__ = ("clear_below", "code", "limit", "over_since", "raised", "severity", "text", "under_since")
 
-    def __init__(self, code: str, severity: Severity, limit: float, label: str, unit: str) -> None:
+    def __init__(self, code: str, severity: Severity, limit: float, text: str) -> None:
         self.code = code
         self.severity = severity
-        self.limit = limit
+        self.limit = limit  # [m] or [rad]
         self.clear_below = CLEAR_FRACTION * limit
-        self.label = label  # "warning" / "alarm"
-        self.unit = unit    # "m" / "deg"
+        self.text = text  # the alarm's text, with {value} for the deviation shown
         self.over_since: float | None = None
         self.under_since: float | None = None
         self.raised = False
@@ -61,12 +60,16 @@ class DeviationMonitor:
     def __init__(self, settings: DeviationSettings, alarms: AlarmRegistry) -> None:
         self.settings = settings
         self.alarms = alarms
-        self._position = (_Limit("position.deviation.warning", Severity.WARNING, settings.position_warning_m,
-                                 "warning", "m"),
-                          _Limit("position.deviation.alarm", Severity.ALARM, settings.position_alarm_m, "alarm", "m"))
-        self._heading = (_Limit("heading.deviation.warning", Severity.WARNING, settings.heading_warning_rad,
-                                "warning", "deg"),
-                         _Limit("heading.deviation.alarm", Severity.ALARM, settings.heading_alarm_rad, "alarm", "deg"))
+        self._position = tuple(
+            _Limit(f"position.deviation.{label}", severity, limit,
+                   f"position deviation {{value:.1f}} m from the reference ({label} limit {limit:g} m)")
+            for label, severity, limit in (("warning", Severity.WARNING, settings.position_warning_m),
+                                           ("alarm", Severity.ALARM, settings.position_alarm_m)))
+        self._heading = tuple(
+            _Limit(f"heading.deviation.{label}", severity, limit, f"heading deviation {{value:.1f}} deg from the "
+                   f"reference ({label} limit {math.degrees(limit):g} deg)")
+            for label, severity, limit in (("warning", Severity.WARNING, settings.heading_warning_rad),
+                                           ("alarm", Severity.ALARM, settings.heading_alarm_rad)))
         self._any_raised = False
         #: the last deviations: horizontal distance [m] and heading, wrapped to [0, π] [rad] (None: not watched)
         self.position_m: float | None = None
@@ -104,11 +107,7 @@ class DeviationMonitor:
             if limit.over_since is None:
                 limit.over_since = t_s
             if not limit.raised and t_s - limit.over_since >= persist:
-                shown_limit = limit.limit if limit.unit == "m" else math.degrees(limit.limit)
-                quantity = "position" if limit.unit == "m" else "heading"
-                self.alarms.raise_(t_s, limit.code, limit.severity,
-                                   f"{quantity} deviation {shown:.1f} {limit.unit} from the reference "
-                                   f"({limit.label} limit {shown_limit:g} {limit.unit})")
+                self.alarms.raise_(t_s, limit.code, limit.severity, limit.text.format(value=shown))
                 limit.raised = self._any_raised = True
         elif value < limit.clear_below:
             limit.over_since = None

@@ -215,9 +215,8 @@ class DpController:
         self._shortfall_since: float | None = None
         self._dead_reckoning_alarm = False  # position.dead_reckoning / heading.lost raised (to be cleared)
         self._heading_lost_alarm = False
-        self.last_request: RequestOutcome | None = None  # (published in the status: a sender finds its seq there)
         # every request's outcome, newest last: the status lists the last second's (several in one cycle each
-        # get their own answer)
+        # get their own answer) and the last (a sender finds its seq there)
         self.recent_requests: deque[RequestOutcome] = deque(maxlen=RECENT_REQUESTS)
         self._request_refused_t: float | None = None  # operator.request_refused raised at [s] (cleared 10 s on)
         self._stage_clock = stage_clock
@@ -295,7 +294,11 @@ class DpController:
                 detail = "; ".join([*refusals, in_force, *notes])
                 self.recent_requests.append(RequestOutcome(seq, t_s, "refused" if refusals else "applied", detail))
             self._taken.clear()
-            self.last_request = self.recent_requests[-1]
+
+    @property
+    def last_request(self) -> RequestOutcome | None:
+        """The outcome of the last operator request taken (None before the first)."""
+        return self.recent_requests[-1] if self.recent_requests else None
 
     def requests_since(self, t_s: float) -> list[RequestOutcome]:
         """The outcomes of the requests taken at or after ``t_s`` [s], oldest first (at most

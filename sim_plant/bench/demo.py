@@ -46,6 +46,7 @@ import yaml
 
 from dpcontrol.models.schema import ConfigError
 from dpcontrol.platform_info import cpu_times, describe_steal, host_steal
+from dpcontrol.runtime.config import CONTROLLER_SECTIONS
 from dpcontrol.yamlfile import read_yaml_file
 from interfaces.zenoh.loopback import free_tcp_port, free_udp_port
 
@@ -167,8 +168,7 @@ def prepare(scenario_path: Path, run_dir: Path, *, realtime: bool = False) -> tu
     priority = realtime_priority_allowed() if realtime else None
     if priority is not None:
         config["loop"]["realtime_priority"] = priority
-    for key in ("estimator", "control", "guidance", "allocation", "hub", "fallback", "thruster_monitor",
-                "consequence", "deviation"):
+    for key in CONTROLLER_SECTIONS:
         if key in controller:
             config[key] = controller[key]
     if config["datum"] is None:

@@ -67,8 +67,8 @@ def controller_mapping(scenario: Scenario, overrides: Mapping[str, Any] | None =
     The vessel, one sensor per scenario sensor (its kind, rate, noise and lever arm, as an
     installation engineer would configure them from the data sheets) on a transport of its
     protocol, and the scenario's ``controller:`` section (``estimator``, ``control``, ``guidance``,
-    ``allocation``, ``hub``, ``fallback``, ``loop``, ``thruster_monitor``, ``consequence``) on top; ``overrides``
-    (same keys) win over both. DP engages 20 s after the estimator starts unless ``loop`` says
+    ``allocation``, ``hub``, ``fallback``, ``loop``, ``thruster_monitor``, ``consequence``, ``deviation``) on top;
+    ``overrides`` (same keys) win over both. DP engages 20 s after the estimator starts unless ``loop`` says
     otherwise.
     """
     sensors = []

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 import yaml
 
+from dpcontrol.runtime.config import CONTROLLER_SECTIONS
 from sim_plant.bench.run import build_simulation
 from sim_plant.scenario import load_scenario
 
@@ -26,8 +27,6 @@ EXAMPLES = {  # example → the seed scenario of its vessel, and how much of it 
     "blue_lady": ("bluelady-seed004.yaml", None),
     "mariner": ("mariner-seed002.yaml", None),
 }
-CONTROLLER_SECTIONS = ("estimator", "control", "guidance", "allocation", "hub", "fallback", "thruster_monitor",
-                       "consequence", "deviation")
 
 
 @pytest.mark.parametrize("example", sorted(EXAMPLES))
