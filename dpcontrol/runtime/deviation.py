@@ -2,11 +2,14 @@
 
 Every DP system warns the operator when the vessel strays from the desired position or heading, at two limits:
 a warning (the yellow of an operating guideline) and an alarm (the red). Here the deviation is the estimated
-low-frequency pose (the wave filter's η̂, so the first-order wave motion does not trip it) against the
-reference η_d of the guidance (the desired pose of the moment: during a move the reference travels, and
-following it is no deviation; a vessel that cannot keep up with it is). Position is watched in ``auto_position``,
-heading in ``auto_position`` and ``auto_heading``; in standby, or in a mode that does not hold the quantity,
-its alarms clear.
+low-frequency pose (the wave filter's η̂, so the first-order wave motion does not trip it) against the pose
+the controller makes the vessel follow (the desired pose of the moment: during a move the reference travels,
+and following it is no deviation; a vessel that cannot keep up with it is). For the PID that is the guidance's
+reference η_d; the MRAC drives its reference model y_M (seed 003 eq. (15)) with η_d and makes the vessel track
+y_M, which trails η_d by design (8.7 m in the shuttle tanker's 20 m set-point corrections), so its deviation is
+measured from y_M (:meth:`dpcontrol.runtime.step.DpController.step` passes the one in use). Position is
+watched in ``auto_position``, heading in ``auto_position`` and ``auto_heading``; in standby, or in a mode that
+does not hold the quantity, its alarms clear.
 
 A limit exceeded for ``persist_s`` raises its alarm: ``position.deviation.warning`` (warning),
 ``position.deviation.alarm`` (alarm), ``heading.deviation.warning``, ``heading.deviation.alarm``; both stay up
@@ -76,8 +79,8 @@ class DeviationMonitor:
         self.heading_rad: float | None = None
 
     def update(self, t_s: float, mode: str, eta_hat_n: np.ndarray | None, eta_d_n: np.ndarray | None) -> None:
-        """One step at ``t_s`` [s] in ``mode``: the estimate η̂ and the reference η_d ``[m, m, rad]`` (NED; None
-        when there is none, e.g. in standby)."""
+        """One step at ``t_s`` [s] in ``mode``: the estimate η̂ and the pose tracked (η_d, or the MRAC's y_M)
+        ``[m, m, rad]`` (NED; None when there is none, e.g. in standby)."""
         if eta_hat_n is None or eta_d_n is None or mode not in _HEADING_MODES:
             self.position_m = self.heading_rad = None
             if self._any_raised:
