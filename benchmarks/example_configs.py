@@ -77,6 +77,7 @@ def run_example(example: str, scenario_name: str | None = None, duration_s: floa
         "heading_max_deg": math.degrees(max(heading, default=0.0)),
         "heading_median_deg": math.degrees(float(np.median(heading or [0.0]))),
         "deviation_alarms": sorted({e.code for e in result.alarm_events if e.raised and ".deviation." in e.code}),
+        "alarms": sorted({e.code for e in result.alarm_events if e.raised}),
         "mass_estimates": None if mass is None else list(mass),
     }
 
@@ -95,7 +96,8 @@ def main() -> int:
         print(f"{r['example']:<15} {r['scenario']:<28} control {json.dumps(r['control'])}: position "
               f"{r['position_max_m']:.2f} m at most ({r['position_median_m']:.2f} median), heading "
               f"{r['heading_max_deg']:.2f}° ({r['heading_median_deg']:.2f}); deviation alarms "
-              f"{', '.join(r['deviation_alarms']) or 'none'}{mass}")
+              f"{', '.join(r['deviation_alarms']) or 'none'}{mass}"
+              + ("; MRAC adaptation suspended (control.adaptation)" if "control.adaptation" in r["alarms"] else ""))
     return 0
 
 

@@ -538,6 +538,8 @@ class MracController:
         self._state[S_A1] = c_nom
         self._excited = 0  # bit i: the reference model excited DOF i's mass adaptation at the last step
         self._mass = (m_nom[0], m_nom[1], m_nom[2])  # â₂ as floats (mass_hat_floats), updated when it changes
+        self._mass_low = tuple(const[C_A2_LO].tolist())  # the projection bounds as floats (mass_at_bound)
+        self._mass_high = tuple(const[C_A2_HI].tolist())
         self._zero3 = np.zeros(3)  # b̂ and τ̂_wind when not given
 
     @property
@@ -626,6 +628,32 @@ class MracController:
                       "ref_model_east_m": east, "ref_model_heading_rad": heading}
         return ControlOutput(out[OUT_TAU:OUT_TAU + 3], out[OUT_ERROR:OUT_ERROR + 3],
                              out[OUT_VELOCITY_ERROR:OUT_VELOCITY_ERROR + 3], parameters)
+
+    def mass_at_bound(self) -> int | None:
+        """The first DOF (0 surge, 1 sway, 2 yaw) whose ``â₂`` sits on a projection bound, else None.
+
+        A bound is a physical limit (``mass_bounds_factor`` × ``mass_nominal``: a vessel neither loses 70 % of
+        its inertia nor quintuples it), so an estimate held there is no longer learning the vessel but
+        something the law mistakes for inertia: measured on CyberShip II and the supply vessel, whose
+        closed loops (wave filter, bias compensation, thrusters) carry errors that correlate with the reference
+        acceleration, the estimates went from bound to bound and the heading was lost (110° and 54°).
+        :meth:`dpcontrol.runtime.step.DpController.step` then calls :meth:`suspend_adaptation`.
+        """
+        for i, (mass, low, high) in enumerate(zip(self._mass, self._mass_low, self._mass_high, strict=True)):
+            if mass <= low or mass >= high:
+                return i
+        return None
+
+    def suspend_adaptation(self) -> None:
+        """Stop adapting and return to the nominal parameters: the fixed PD of seed 003 eq. (25).
+
+        The supervision's answer to :meth:`mass_at_bound`. Not part of :meth:`state_dict`: a restarted
+        controller adapts again (from the estimates saved, the nominal ones after a suspension).
+        """
+        self._adapt = False
+        self._const[C_FLAGS, 1] = 0.0
+        self._excited = 0
+        self.reset_parameters()
 
     def notify_achieved(self, tau_achieved_b: np.ndarray) -> None:
         """The force the allocator could deliver for the last command (freezes adaptation if short)."""

@@ -17,9 +17,11 @@ import sys
 from pathlib import Path
 from types import ModuleType
 
+import numpy as np
 import pytest
 import yaml
 
+from dpcontrol.models.vessels import BUILTIN_VESSELS
 from dpcontrol.runtime.config import parse_config
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -49,3 +51,17 @@ def test_the_example_holds_its_vessel_within_its_deviation_limits(example: str) 
     assert result["position_max_m"] < limits.position_warning_m, measured
     assert math.radians(result["heading_max_deg"]) < limits.heading_warning_rad, measured
     assert result["watched_steps"] > 0.5 * result["steps"]  # watched (in DP) for most of the run
+
+
+def test_an_mrac_whose_estimates_run_to_a_bound_falls_back_to_its_fixed_pd() -> None:
+    """CyberShip II under MRAC in its seed scenario: the adaptation, driven by the bumpless entry's glide and the
+    closed loop's errors, took the mass estimates from bound to bound within seconds (surge 5x, sway 0.3x) and lost
+    the heading by 180 deg. The supervision suspends the adaptation at the first bound (``control.adaptation``) and
+    the controller holds her as the fixed PD of seed 003 eq. (25) does."""
+    result = BENCHMARK.run_example("cybership2", control={"kind": "mrac"})
+    measured = f"deviation at most {result['position_max_m']:.2f} m, {result['heading_max_deg']:.2f} deg"
+    assert "control.adaptation" in result["alarms"], measured
+    nominal = np.diag(BUILTIN_VESSELS["cybership2"].mass_matrix)
+    assert result["mass_estimates"] == pytest.approx(nominal.tolist())  # back to the nominal inertia
+    assert result["position_max_m"] < 0.2, measured  # the example's warning limit
+    assert result["heading_max_deg"] < 5.0, measured

@@ -169,6 +169,35 @@ def test_saturation_freezes_adaptation_and_projection_bounds_the_estimates() -> 
     assert np.all(controller.damping_hat >= 0.0)
 
 
+def test_an_estimate_on_its_bound_is_reported_and_suspension_restores_the_fixed_pd() -> None:
+    config = default_mrac_config(SUPPLY)
+    controller = MracController(config)
+    assert controller.mass_at_bound() is None
+    state = controller.state_dict()
+    lo, hi = config.mass_bounds_factor
+    nominal = list(config.mass_nominal)
+    controller.load_state_dict({**state, "mass_hat": [nominal[0], 0.9 * lo * nominal[1], nominal[2]]})  # projected
+    assert controller.mass_at_bound() == 1
+    controller.load_state_dict({**state, "mass_hat": [nominal[0], nominal[1], 0.999 * hi * nominal[2]]})
+    assert controller.mass_at_bound() is None  # inside the bounds
+    controller.load_state_dict({**state, "mass_hat": [hi * nominal[0], nominal[1], lo * nominal[2]]})
+    assert controller.mass_at_bound() == 0  # the first DOF on a bound
+    controller.suspend_adaptation()
+    assert not controller.adapting and controller.mass_at_bound() is None
+    np.testing.assert_array_equal(controller.mass_hat, nominal)
+    # a move that adapts an unsuspended controller leaves the suspended one at the fixed PD of eq. (25)
+    adapting = MracController(config)
+    ref = Reference.hold(np.array([50.0, -30.0, 1.0]))
+    for c in (controller, adapting):
+        c.step(0.1, np.zeros(3), np.zeros(3), None, Reference.hold(np.zeros(3)))
+        for _ in range(200):
+            out = c.step(0.1, np.array([5.0, 2.0, 0.1]), np.zeros(3), None, ref)
+            c.notify_achieved(out.tau_b)
+    assert not np.allclose(adapting.mass_hat, nominal)
+    np.testing.assert_array_equal(controller.mass_hat, nominal)
+    assert controller.excited == (False, False, False)
+
+
 def test_sigma_modification_leaks_back_to_nominal_exactly() -> None:
     config = dataclasses.replace(default_mrac_config(SUPPLY), leakage_per_s=1e-3, dead_zone=(1e9, 1e9, 1e9),
                                  accel_threshold=(0.0, 0.0, 0.0))
