@@ -25,12 +25,14 @@ surge, sway, yaw along the last axis; the PID's layout is given with its constan
   ``C_G_RATIO`` g₂₂/g₁₂ [s] (eq. (20)), ``C_GAMMA_M``/``C_GAMMA_C`` Γ₁₁, Γ₂₂, ``C_DEAD_ZONE`` d₀
   [m, m, rad], ``C_ACCEL``/``C_VELOCITY`` the gating thresholds, ``C_A2_LO``/``C_A2_HI``/``C_A1_LO``/
   ``C_A1_HI`` the projection bounds, ``C_A2_NOMINAL``/``C_A1_NOMINAL`` the nominal parameters,
-  ``C_OMEGA`` ω_M [rad/s] and ``C_ZETA`` ζ of eq. (15), and ``C_FLAGS`` = (σ [1/s], adapt,
-  reference regressor) (1.0 = true);
+  ``C_OMEGA`` ω_M [rad/s] and ``C_ZETA`` ζ of eq. (15), ``C_FLAGS`` = (σ [1/s], adapt,
+  reference regressor) (1.0 = true) and ``C_ENTRY_REST`` how long the reference model must have rested
+  after an entry into DP before anything is learnt [s] (0: no wait);
 * ``state`` (``S_ROWS``, 3): ``S_Y_M``/``S_YD_M`` the reference model y_M, ẏ_M in NED [m, rad; m/s,
   rad/s], ``S_A2``/``S_A1`` the estimates â₂, â₁, ``S_COMMAND``/``S_ACHIEVED`` the last command and
-  the force the allocator achieved for it [N, N, N·m], and ``S_FLAGS`` = (reference model initialised,
-  achieved force known, unused);
+  the force the allocator achieved for it [N, N, N·m], ``S_FLAGS`` = (reference model initialised,
+  achieved force known, unused) and ``S_REST`` how long the reference model has rested (gate closed,
+  unbroken) since the entry, counted up to ``C_ENTRY_REST`` [s];
 * ``out`` (``OUT_SIZE``,): ``OUT_TAU`` τ [N, N, N·m], ``OUT_ERROR`` e_b = Rᵀ(ψ̂)(η̂ − y_M) [m, m, rad],
   ``OUT_VELOCITY_ERROR`` ė_b [m/s, m/s, rad/s] and ``OUT_PARAMETERS`` (â₂, â₁ after the adaptation,
   y_M before the advance: the order of ``PARAMETER_NAMES + REFERENCE_MODEL_NAMES``).
@@ -47,9 +49,10 @@ from dpcontrol.models.frames import ssa_compiled as ssa
 
 C_BETA0, C_BETA1, C_G12, C_G_RATIO, C_GAMMA_M, C_GAMMA_C, C_DEAD_ZONE, C_ACCEL, C_VELOCITY = range(9)
 C_A2_LO, C_A2_HI, C_A1_LO, C_A1_HI, C_A2_NOMINAL, C_A1_NOMINAL, C_OMEGA, C_ZETA, C_FLAGS = range(9, 18)
-C_ROWS = 18
-S_Y_M, S_YD_M, S_A2, S_A1, S_COMMAND, S_ACHIEVED, S_FLAGS = range(7)
-S_ROWS = 7
+C_ENTRY_REST = 18
+C_ROWS = 19
+S_Y_M, S_YD_M, S_A2, S_A1, S_COMMAND, S_ACHIEVED, S_FLAGS, S_REST = range(8)
+S_ROWS = 8
 OUT_TAU, OUT_ERROR, OUT_VELOCITY_ERROR, OUT_PARAMETERS = 0, 3, 6, 9
 OUT_SIZE = 18
 
@@ -246,6 +249,13 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
                 v2 = z[i]
                 v1 = nu[i]
             gate = abs(ydd_b[i]) > const[C_ACCEL, i]
+            rest = state[S_REST, i]
+            if rest < const[C_ENTRY_REST, i]:  # since the entry the reference has not rested long enough
+                if gate:
+                    gate = False  # (the glide that decelerates the drift: nothing to learn from it)
+                    state[S_REST, i] = 0.0  # a rest is unbroken: ÿ_M passing through zero is none
+                else:
+                    state[S_REST, i] = rest + dt
             if gate:
                 excited |= 1 << i
             gamma_m = const[C_GAMMA_M, i]

@@ -149,7 +149,7 @@ def test_default_gains_adapt_through_the_guidance_as_fast_as_through_steps() -> 
 
 
 def test_saturation_freezes_adaptation_and_projection_bounds_the_estimates() -> None:
-    config = default_mrac_config(SUPPLY)
+    config = dataclasses.replace(default_mrac_config(SUPPLY), entry_rest_s=0.0)  # (learning at once)
     controller = MracController(config)
     controller.step(0.1, np.zeros(3), np.zeros(3), None, Reference.hold(np.zeros(3)))
     ref = Reference.hold(np.array([50.0, -30.0, 1.0]))  # makes the reference model accelerate
@@ -170,7 +170,7 @@ def test_saturation_freezes_adaptation_and_projection_bounds_the_estimates() -> 
 
 
 def test_an_estimate_on_its_bound_is_reported_and_suspension_restores_the_fixed_pd() -> None:
-    config = default_mrac_config(SUPPLY)
+    config = dataclasses.replace(default_mrac_config(SUPPLY), entry_rest_s=0.0)  # (learning at once)
     controller = MracController(config)
     assert controller.mass_at_bound() is None
     state = controller.state_dict()
@@ -196,6 +196,48 @@ def test_an_estimate_on_its_bound_is_reported_and_suspension_restores_the_fixed_
     assert not np.allclose(adapting.mass_hat, nominal)
     np.testing.assert_array_equal(controller.mass_hat, nominal)
     assert controller.excited == (False, False, False)
+
+
+def test_nothing_is_learnt_after_an_entry_until_the_reference_has_rested() -> None:
+    config = default_mrac_config(SUPPLY)
+    period = config.natural_period_s[0]
+    assert config.entry_rest_s == pytest.approx(period)  # the default design: one reference-model period
+    assert default_mrac_config(SUPPLY, step_driven=True).entry_rest_s == 0.0  # seed 003's step study as written
+    controller = MracController(config)
+    nominal = list(config.mass_nominal)
+    moving = Reference.hold(np.array([20.0, -10.0, 0.3]))  # the reference model accelerates towards it
+    here = Reference.hold(np.zeros(3))
+    eta_behind = np.array([-0.5, 0.5, -0.02])  # errors that would teach the law
+    dt = 1.0
+
+    def run(reference: Reference, seconds: float) -> None:
+        for _ in range(int(seconds / dt)):
+            out = controller.step(dt, eta_behind, np.zeros(3), None, reference)
+            controller.notify_achieved(out.tau_b)
+
+    # the entry (the first step) is at the estimate; a glide and a move straight away teach nothing
+    run(moving, 0.5 * period)
+    np.testing.assert_array_equal(controller.mass_hat, nominal)
+    assert controller.excited == (False, False, False)
+    assert controller.state_dict()["rest_s"] == [0.0, 0.0, 0.0]
+    # a reference at rest for one period (its gate closed: the model settles on the hold), then a move learns
+    run(here, 6.0 * period)
+    assert min(controller.state_dict()["rest_s"]) >= config.entry_rest_s
+    run(moving, 0.5 * period)
+    assert not np.allclose(controller.mass_hat, nominal)
+    # a new entry (reset) waits again, keeping what was learnt; the rest survives a save and a restore
+    learnt = controller.mass_hat
+    controller.reset()
+    run(moving, 0.5 * period)
+    np.testing.assert_array_equal(controller.mass_hat, learnt)
+    restored = MracController(config)
+    restored.load_state_dict(json.loads(json.dumps(controller.state_dict())))
+    assert restored.state_dict() == controller.state_dict()
+    older = {k: v for k, v in controller.state_dict().items() if k != "rest_s"}  # saved before the rest existed
+    restored.load_state_dict(older)
+    assert restored.state_dict()["rest_s"] == [config.entry_rest_s] * 3  # counted as rested, as it learnt then
+    with pytest.raises(ValueError, match="rest_s"):
+        restored.load_state_dict({**controller.state_dict(), "rest_s": [0.0, -1.0, 0.0]})
 
 
 def test_sigma_modification_leaks_back_to_nominal_exactly() -> None:
