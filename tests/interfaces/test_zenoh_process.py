@@ -92,7 +92,9 @@ def test_clean_exit_of_another_process_is_a_loss_too() -> None:
                                  stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
         try:
             assert feedback.sink.wait_count(1, TIMEOUT_S)
-            assert plant.present
+            # (the token was declared before the first put, but the two reach the listener on different
+            # subscriptions, in no guaranteed order: the clean CI run of 2026-12-03 14:20 saw the put first)
+            assert plant.wait_for(True, TIMEOUT_S), "plant token never appeared"
             child.stdin.close()  # the child closes its node and exits
             assert child.wait(TIMEOUT_S) == 0
             assert plant.wait_for(False, TIMEOUT_S)
