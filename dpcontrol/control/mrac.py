@@ -558,9 +558,9 @@ class MracController:
         self._state[S_A2] = m_nom
         self._state[S_A1] = c_nom
         self._excited = 0  # bit i: the reference model excited DOF i's mass adaptation at the last step
-        self._mass = (m_nom[0], m_nom[1], m_nom[2])  # â₂ as floats (mass_hat_floats), updated when it changes
-        self._mass_low = tuple(const[C_A2_LO].tolist())  # the projection bounds as floats (mass_at_bound)
+        self._mass_low = tuple(const[C_A2_LO].tolist())  # the projection bounds as floats (_set_mass)
         self._mass_high = tuple(const[C_A2_HI].tolist())
+        self._set_mass(m_nom[0], m_nom[1], m_nom[2])  # â₂ as floats (mass_hat_floats), updated when it changes
         self._zero3 = np.zeros(3)  # b̂ and τ̂_wind when not given
 
     @property
@@ -641,7 +641,7 @@ class MracController:
         values = out.tolist()
         m0, m1, m2, c0, c1, c2, north, east, heading = values[OUT_PARAMETERS:]
         if result & MASS_CHANGED:
-            self._mass = (m0, m1, m2)
+            self._set_mass(m0, m1, m2)
         # keys: PARAMETER_NAMES, REFERENCE_MODEL_NAMES (a dict display and positional fields: dict(zip(...)) and
         # keywords cost three times as much)
         parameters = {"mass_surge_kg": m0, "mass_sway_kg": m1, "inertia_yaw_kgm2": m2, "damping_surge_nspm": c0,
@@ -660,10 +660,16 @@ class MracController:
         acceleration, the estimates went from bound to bound and the heading was lost (110° and 54°).
         :meth:`dpcontrol.runtime.step.DpController.step` then calls :meth:`suspend_adaptation`.
         """
+        return self._bound_dof
+
+    def _set_mass(self, m0: float, m1: float, m2: float) -> None:
+        """â₂ as floats, and which DOF sits on a projection bound (judged when â₂ changes, not every step)."""
+        self._mass = (m0, m1, m2)
+        self._bound_dof: int | None = None
         for i, (mass, low, high) in enumerate(zip(self._mass, self._mass_low, self._mass_high, strict=True)):
             if mass <= low or mass >= high:
-                return i
-        return None
+                self._bound_dof = i
+                break
 
     def suspend_adaptation(self) -> None:
         """Stop adapting and return to the nominal parameters: the fixed PD of seed 003 eq. (25).
@@ -694,7 +700,7 @@ class MracController:
         self._state[S_A2] = self._const[C_A2_NOMINAL]
         self._state[S_A1] = self._const[C_A1_NOMINAL]
         m0, m1, m2 = self._state[S_A2].tolist()
-        self._mass = (m0, m1, m2)
+        self._set_mass(m0, m1, m2)
 
     def state_dict(self) -> dict[str, Any]:
         """JSON-able state: parameter estimates, reference model, saturation memory."""
@@ -732,7 +738,7 @@ class MracController:
         ours = self._state
         m0, m1, m2 = (min(max(a2[i], lo2[i]), hi2[i]) for i in range(3))
         ours[S_A2] = (m0, m1, m2)
-        self._mass = (m0, m1, m2)
+        self._set_mass(m0, m1, m2)
         ours[S_A1] = [min(max(a1[i], lo1[i]), hi1[i]) for i in range(3)]
         ours[S_Y_M] = (y_m[0], y_m[1], ssa(y_m[2]))
         ours[S_YD_M] = yd_m

@@ -167,7 +167,7 @@ class DpController:
             self._mass_adaptive = MassAdaptiveEstimator(self.estimator, np.diag(vessel.mass_matrix))
             self.estimator = self._mass_adaptive
         # MRAC supervision (_supervise): an estimate on a projection bound stops the adaptation
-        self._supervise_adaptation = isinstance(self.controller, MracController) and self.controller.adapting
+        self._mrac = self.controller if isinstance(self.controller, MracController) else None
         self.thrusters = vessel.thrusters
         with _section_of_config("allocation", config):
             self.allocator = ThrustAllocator(vessel.thrusters, self.dt_s, **dict(config.allocation))
@@ -414,8 +414,8 @@ class DpController:
                 if parameters is not None:
                     # the controller builds a new dict every step: kept as it is (another mapping is copied)
                     out.mrac = parameters if type(parameters) is dict else dict(parameters)
-                if self._supervise_adaptation and self.controller.adapting:
-                    self._supervise(t_s)
+                if self._mrac is not None and self._mrac.adapting:
+                    self._supervise(self._mrac, t_s)
                 if self._mass_adaptive is not None and not any(self.controller.excited):
                     # only when â₂ changed (it is held between moves): saves an array and the filter's
                     # ratio update on most steps; the same values give the same ratio
@@ -598,21 +598,18 @@ class DpController:
         self.mode = wanted
         self._requested_mode = wanted
 
-    def _supervise(self, t_s: float) -> None:
+    def _supervise(self, controller: MracController, t_s: float) -> None:
         """``control.adaptation``: an MRAC estimate on its projection bound suspends the adaptation.
 
         The controller returns to its nominal parameters, the fixed PD of seed 003 eq. (25), which holds
         the vessels whose adaptation was measured to run away (:meth:`MracController.mass_at_bound`). The
         alarm stays up until a restart, which adapts again.
         """
-        controller = self.controller
-        assert isinstance(controller, MracController)
         dof = controller.mass_at_bound()
         if dof is None:
             return
         ratio = controller.mass_hat_floats[dof] / controller.config.mass_nominal[dof]
-        controller.suspend_adaptation()
-        self._supervise_adaptation = False
+        controller.suspend_adaptation()  # (adapting is False from here on: no more supervision)
         self.alarms.raise_(t_s, "control.adaptation", Severity.ALARM,
                            f"MRAC {_MASS_NAMES[dof]} estimate reached its bound ({ratio:.2g}x nominal): adaptation "
                            "suspended, nominal parameters (fixed PD) until a restart")
