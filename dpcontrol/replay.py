@@ -26,6 +26,7 @@ from dpcontrol.runtime.daemon import request_from_dict
 from dpcontrol.runtime.inputs import SensorRouter
 from dpcontrol.runtime.step import DpController
 from dpcontrol.runtime.thrusters import ThrusterFeedback
+from dpcontrol.yamlfile import load_yaml
 from interfaces.mavlink.codec import MavlinkDecoder, parse_signing_key
 from interfaces.messages import Measurement, Rejected
 from interfaces.nmea0183 import Nmea0183Decoder
@@ -182,7 +183,7 @@ def replay(log: Path, config_path: Path, out_dir: Path | None = None, *, plots: 
         np.savetxt(out_dir / "commands.csv", table, delimiter=",", header=",".join(header), comments="",
                    fmt="%.9g")
         (out_dir / "replay.json").write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
-        (out_dir / "config.yaml").write_text(yaml.safe_dump(yaml.safe_load(config.source_text)), encoding="utf-8")
+        (out_dir / "config.yaml").write_text(yaml.safe_dump(load_yaml(config.source_text)), encoding="utf-8")
         if plots and rows:
             _plot(out_dir, times, names, old_thrust=old_thrust, new_thrust=new_thrust, old_azimuth=old_azimuth,
                   new_azimuth=new_azimuth, same_config=same_config)

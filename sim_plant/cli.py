@@ -26,6 +26,7 @@ from types import FrameType
 from typing import Any
 
 from dpcontrol.arguments import positive_number
+from dpcontrol.yamlfile import load_yaml
 
 # Small matrices only: a threaded BLAS costs ~100x per LAPACK call on a loaded 2-core machine.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
@@ -101,7 +102,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     overrides: dict[str, Any] = {}
     try:
         for text in args.override:
-            value = yaml.safe_load(text)
+            value = load_yaml(text)
             if not isinstance(value, dict):
                 raise ValueError(f"--override {text!r}: expected a mapping of config sections")
             overrides.update(value)

@@ -15,8 +15,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from dpcontrol.allocation.allocator import allocator_kwargs_from_mapping
 from dpcontrol.allocation.consequence import FailureGroup
 from dpcontrol.control import AutopilotConfig, MracConfig, PidConfig, control_config_from_mapping
@@ -25,7 +23,7 @@ from dpcontrol.guidance import ReferenceModelConfig, reference_config_from_mappi
 from dpcontrol.models.schema import ConfigError, Section, join, parse_list
 from dpcontrol.models.vessels import VesselData, vessel_from_config
 from dpcontrol.runtime.hub import HubConfig, SensorConfig, SensorKind
-from dpcontrol.yamlfile import read_yaml_file
+from dpcontrol.yamlfile import load_yaml, read_yaml_file
 from interfaces.recorder import RecorderSettings
 from interfaces.zenoh.config import ZenohConfig
 
@@ -589,6 +587,6 @@ def load_config(path: str | Path) -> DaemonConfig:
 
 def config_summary(config: DaemonConfig) -> dict[str, Any]:
     """The running configuration as a JSON-able mapping (the ``dp/<vessel>/config`` queryable)."""
-    mapping = yaml.safe_load(config.source_text) if config.source_text else {}
+    mapping = load_yaml(config.source_text) if config.source_text else {}
     return {"vessel_id": config.vessel_id, "config_sha256": config.config_hash, "file": config.source_file,
             "config": mapping}

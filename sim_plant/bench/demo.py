@@ -47,7 +47,7 @@ import yaml
 from dpcontrol.models.schema import ConfigError
 from dpcontrol.platform_info import cpu_times, describe_steal, host_steal
 from dpcontrol.runtime.config import CONTROLLER_SECTIONS
-from dpcontrol.yamlfile import read_yaml_file
+from dpcontrol.yamlfile import load_yaml, read_yaml_file
 from interfaces.zenoh.loopback import free_tcp_port, free_udp_port
 
 DEMO_SENSORS = [
@@ -439,7 +439,7 @@ def write_report(run_dir: Path, wiring: dict[str, Any], *, daemon_code: int | No
     report.mkdir(exist_ok=True)
     truth = _read_csv(run_dir / "plant" / "truth.csv")
     commands = _read_csv(run_dir / "plant" / "commands.csv")
-    scenario = yaml.safe_load((run_dir / "scenario.yaml").read_text(encoding="utf-8"))
+    scenario = load_yaml((run_dir / "scenario.yaml").read_text(encoding="utf-8"))
     summary: dict[str, Any] = {"run_dir": str(run_dir), "dpcontrol_exit": daemon_code, "sim_plant_exit": plant_code,
                                "host_steal": host_steal, "interrupted_by": interrupted_by}
     stats_file = run_dir / "dpcontrol-stats.json"

@@ -39,9 +39,9 @@ def build_simulation(scenario: Scenario, controller_config: str | Path | None = 
         return LockstepSimulation(scenario, parse_config(mapping, file=f"<scenario {scenario.name}>"))
     config = load_config(controller_config)
     if overrides:
-        import yaml  # noqa: PLC0415
+        from dpcontrol.yamlfile import load_yaml  # noqa: PLC0415
 
-        base = yaml.safe_load(config.source_text) or {}
+        base = load_yaml(config.source_text) or {}
         base.update(overrides)
         config = parse_config(base, file=str(controller_config), text=config.source_text)
     return LockstepSimulation(scenario, config)
