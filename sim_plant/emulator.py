@@ -429,10 +429,6 @@ class HilEmulator:
                                  engage_timeout_s=self.options.engage_timeout_s,
                                  engage_retry_s=self.options.engage_retry_s)
 
-    def device_paths(self) -> dict[str, str]:
-        """Transport name → pty path the daemon opens (NMEA 0183 links)."""
-        return {name: link.device_path for name, link in self.links.items() if isinstance(link, SerialLink)}
-
     # -- control -----------------------------------------------------------------------------------
     def stop(self, reason: str = "stop") -> None:
         """Ask the loop to end (from another thread); :meth:`run` then cleans up and returns."""

@@ -122,10 +122,6 @@ class AlarmRegistry:
         events, self._events = self._events, []
         return events
 
-    def history_codes(self) -> set[str]:
-        """Codes ever raised and still listed."""
-        return set(self._alarms)
-
 
 class CountAlarm:
     """An alarm on a running count of events that have no "back to normal" of their own (dropped inputs,

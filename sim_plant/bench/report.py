@@ -531,23 +531,6 @@ def first_raise(events: Sequence[AlarmEvent], codes: Sequence[str], after_s: flo
     return None
 
 
-def alarm_intervals(events: Sequence[AlarmEvent], code: str, end_s: float = math.inf) -> list[tuple[float, float]]:
-    """``(raised, cleared)`` times of ``code`` (``end_s`` for one still active at the end)."""
-    out: list[tuple[float, float]] = []
-    start: float | None = None
-    for event in events:
-        if event.code != code:
-            continue
-        if event.raised and start is None:
-            start = event.t_s
-        elif not event.raised and start is not None:
-            out.append((start, event.t_s))
-            start = None
-    if start is not None:
-        out.append((start, end_s))
-    return out
-
-
 def fault_detections(result: RunResult) -> list[FaultDetection]:
     """Detection of every fault of the scenario, from the run's alarm events (see :func:`expected_detection`):
     the first raise of one of its codes while it lasts, or within twice its bound of its start."""
@@ -560,10 +543,3 @@ def fault_detections(result: RunResult) -> list[FaultDetection]:
         delay = None if hit is None else hit[0] - fault.t_s
         out.append(FaultDetection(fault, codes, bound, delay, None if hit is None else hit[1]))
     return out
-
-
-def max_step_change(values: np.ndarray) -> np.ndarray:
-    """Largest change between consecutive rows, per column (rows: control steps)."""
-    if values.shape[0] < 2:
-        return np.zeros(values.shape[1:])
-    return np.max(np.abs(np.diff(values, axis=0)), axis=0)

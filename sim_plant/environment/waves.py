@@ -381,11 +381,6 @@ class WaveEnvironment:
             i -= 1
         return i
 
-    def field_at(self, t_s: float) -> WaveField | None:
-        """The realised field of the sea state in force at ``t_s`` (None in calm water)."""
-        i = self.index_at(t_s)
-        return None if i < 0 else self._field(i)
-
     def evaluate(self, t_s: float, north_m: float, east_m: float, heading_rad: float, *,
                  north_rate_mps: float = 0.0, east_rate_mps: float = 0.0) -> WaveSample:
         """WF motion and drift force at ``t_s`` for the vessel's LF pose and velocity."""
