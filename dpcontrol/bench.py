@@ -23,11 +23,12 @@ from dpcontrol.models.thrusters import ThrusterSpec
 from dpcontrol.models.vessels import SUPPLY, VesselData
 from dpcontrol.platform_info import cpu_times, describe, describe_steal, host_steal, machine_info
 from dpcontrol.runtime.config import DaemonConfig, parse_config
+from dpcontrol.runtime.ingest import transport_inputs
 from dpcontrol.runtime.inputs import SensorRouter
 from dpcontrol.runtime.step import DpController, Mode
 from interfaces.geodesy import LocalFrame
 from interfaces.messages import FixQuality, Heading, Measurement, PositionErrorStats, PositionFix, RateOfTurn
-from interfaces.nmea0183 import Nmea0183Decoder, encode_gga, encode_gst, encode_rot, encode_ths
+from interfaces.nmea0183 import encode_gga, encode_gst, encode_rot, encode_ths
 from interfaces.zenoh import schemas
 
 STAGES = ("decode", "hub", "estimator", "control", "allocation", "encode_publish")
@@ -99,8 +100,8 @@ def run_bench(iterations: int = 3000, warmup: int = 200, publish: bool = True) -
     machine = machine_info()
     config = bench_config()
     controller = DpController(config, stage_clock=time.perf_counter)
-    router = SensorRouter(config.routes, config.transports)
-    decoder = Nmea0183Decoder()
+    # the input stage the lockstep and replay read through (decode, count, route)
+    serial = transport_inputs(config.transports, SensorRouter(config.routes, config.transports))["serial"]
     dt = config.sample_time_s
     traffic = _sentences(iterations + warmup, dt)
     names = [t.name for t in config.vessel.thrusters]
@@ -120,11 +121,7 @@ def run_bench(iterations: int = 3000, warmup: int = 200, publish: bool = True) -
             t = k * dt
             c0 = clock()
             measurements.clear()
-            for frame in decoder.feed_frames(traffic[k]):
-                for message in frame.messages:
-                    sensor = router.nmea0183("serial", frame.sentence, message)
-                    if sensor is not None:
-                        measurements.append(Measurement(t, sensor, message))
+            serial.feed(t, traffic[k], measurements)
             c1 = clock()
             out = controller.step(t, measurements)
             c2 = clock()

@@ -23,55 +23,28 @@ import yaml
 from dpcontrol.logtools import read_config, read_records
 from dpcontrol.runtime.config import DaemonConfig, load_config
 from dpcontrol.runtime.daemon import request_from_dict
+from dpcontrol.runtime.ingest import transport_inputs
 from dpcontrol.runtime.inputs import SensorRouter
 from dpcontrol.runtime.step import DpController
 from dpcontrol.runtime.thrusters import ThrusterFeedback
 from dpcontrol.yamlfile import load_yaml
-from interfaces.mavlink.codec import MavlinkDecoder, parse_signing_key
-from interfaces.messages import Measurement, Rejected
-from interfaces.nmea0183 import Nmea0183Decoder
-from interfaces.nmea2000.codec import N2kDecoder
+from interfaces.messages import Measurement
 
 
 class RawDecoders:
-    """The daemon's decoding and routing, applied to recorded raw inputs (one decoder per transport)."""
+    """The daemon's decoding and routing (:mod:`dpcontrol.runtime.ingest`), applied to recorded raw inputs."""
 
     def __init__(self, config: DaemonConfig) -> None:
         self.router = SensorRouter(config.routes, config.transports)
-        self.protocol = {t.name: t.protocol for t in config.transports}
-        self._nmea = {t.name: Nmea0183Decoder() for t in config.transports if t.protocol == "nmea0183"}
-        self._n2k = {t.name: N2kDecoder() for t in config.transports if t.protocol == "nmea2000"}
-        self._mav = {}
-        for t in config.transports:
-            if t.protocol == "mavlink":
-                key = t.settings.get("signing_key_hex")
-                self._mav[t.name] = MavlinkDecoder(parse_signing_key(key) if key else None)
+        self._inputs = transport_inputs(config.transports, self.router)
 
     def decode(self, transport: str, t_s: float, payload: dict[str, Any], data: bytes) -> list[Measurement]:
-        """Routed measurements of one raw input (as the daemon's :class:`InputPump` produced them)."""
-        protocol = self.protocol.get(transport)
-        router = self.router
+        """Routed measurements of one raw input (as the daemon's :class:`InputPump` produced them); an input of
+        a transport the configuration does not have gives none."""
         out: list[Measurement] = []
-        if protocol == "nmea0183":
-            for frame in self._nmea[transport].feed_frames(data + b"\r\n"):
-                for message in frame.messages:
-                    sensor = router.nmea0183(transport, frame.sentence, message)
-                    if sensor is not None:
-                        out.append(Measurement(t_s, sensor, message))
-        elif protocol == "nmea2000":
-            can_id = payload.get("can_id")
-            if isinstance(can_id, int):
-                for result in self._n2k[transport].decode_frame(can_id, data, t_s):
-                    if not isinstance(result.item, Rejected):
-                        sensor = router.nmea2000(transport, result.source_address, result.item)
-                        if sensor is not None:
-                            out.append(Measurement(t_s, sensor, result.item))
-        elif protocol == "mavlink":
-            for result in self._mav[transport].decode_datagram(data):
-                if not isinstance(result.item, Rejected):
-                    sensor = router.mavlink(transport, result.system_id, result.msg_name, result.item)
-                    if sensor is not None:
-                        out.append(Measurement(t_s, sensor, result.item))
+        stage = self._inputs.get(transport)
+        if stage is not None:
+            stage.feed_record(t_s, payload, data, out)
         return out
 
 

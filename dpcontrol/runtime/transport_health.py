@@ -149,10 +149,15 @@ class InputHealth:
 
     def count(self, transport: str, t_s: float, reason: str | None = None) -> None:
         """One frame of ``transport`` at ``t_s``: decoded (``reason`` None) or rejected for ``reason``."""
+        self.of(transport).add(t_s, reason)
+
+    def of(self, transport: str) -> TransportHealth:
+        """The counters of ``transport`` (made for one that is not configured: it cannot deliver, but a
+        count is kept anyway)."""
         health = self.health.get(transport)
-        if health is None:  # a transport that is not configured cannot deliver; keep the count anyway
+        if health is None:
             health = self.health[transport] = TransportHealth(self.window_s)
-        health.add(t_s, reason)
+        return health
 
     def apply_links(self, t_s: float, links: Iterable[LinkStatus], hub: SensorHub, alarms: AlarmRegistry) -> None:
         """Mark the sensors of each changed link (dis)connected in the hub; raise/clear the link alarm."""

@@ -31,14 +31,13 @@ from dpcontrol.platform_info import available_memory_bytes
 from dpcontrol.runtime.alarms import AlarmEvent
 from dpcontrol.runtime.config import DaemonConfig, SensorRoute, parse_config
 from dpcontrol.runtime.hub import SensorState
+from dpcontrol.runtime.ingest import Nmea2000Input, TransportInput, transport_inputs
 from dpcontrol.runtime.inputs import SensorRouter, link_source
 from dpcontrol.runtime.step import DpController, Mode, StepOutput
 from dpcontrol.runtime.thrusters import ThrusterFeedback
 from dpcontrol.runtime.transport_health import InputHealth
-from interfaces.mavlink.codec import HeartbeatMonitor, MavlinkDecoder, MavlinkEncoder
-from interfaces.messages import LinkHeartbeat, LinkStatus, Measurement, PositionFix, Rejected
-from interfaces.nmea0183 import Nmea0183Decoder
-from interfaces.nmea2000.codec import N2kDecoder
+from interfaces.mavlink.codec import HeartbeatMonitor, MavlinkEncoder
+from interfaces.messages import LinkStatus, Measurement, PositionFix
 from interfaces.zenoh.schemas import SetpointRequest
 from sim_plant.encoding import DATE_DAYS_SINCE_1970, MavlinkSensorEncoder, N2kSensorEncoder, NmeaSensorEncoder
 from sim_plant.plant import Plant
@@ -189,13 +188,13 @@ class _CtrlC:
 
 class _SensorPath(NamedTuple):
     """How one scenario sensor reaches the controller: its transport, protocol, kind (``position`` /
-    ``heading``), encoder, its transport's decoder, and the MAVLink system id (None on other protocols)."""
+    ``heading``), encoder, its transport's input stage, and the MAVLink system id (None on other protocols)."""
 
     transport: str
     protocol: str
     kind: str
     encoder: Any
-    decoder: Any
+    stage: TransportInput
     system_id: int | None
 
 
@@ -218,12 +217,10 @@ class _Inputs:
                                   config.hub.error_rate_window_s)
         routes: dict[str, SensorRoute] = {r.sensor.name: r for r in config.routes}
         protocols = {t.name: t.protocol for t in config.transports}
-        self.nmea: dict[str, Nmea0183Decoder] = {}
-        self.n2k: dict[str, N2kDecoder] = {}
-        self.mav: dict[str, MavlinkDecoder] = {}
+        self.stages = transport_inputs(config.transports, self.router, self.health, on_heartbeat=self._heartbeat)
+        self.expiring = [stage for stage in self.stages.values() if isinstance(stage, Nmea2000Input)]
         self.paths: dict[str, _SensorPath] = {}
         self.last_valid: dict[str, list[Any]] = {}
-        self.rejected = 0
         self.unplugged: set[str] = set()
         self.links: list[LinkStatus] = []
         self.applied: list[dict[str, Any]] = []
@@ -242,18 +239,14 @@ class _Inputs:
                 raise ValueError(f"sensor {spec.name}: the scenario sends {spec.protocol}, "
                                  f"the controller expects {protocol}")
             encoder: Any
-            decoder: Any
             system_id = None
             if protocol == "nmea0183":
-                decoder = self.nmea.setdefault(route.transport, Nmea0183Decoder())
                 encoder = NmeaSensorEncoder(spec.kind, route.talker, route.sentences)
             elif protocol == "nmea2000":
-                decoder = self.n2k.setdefault(route.transport, N2kDecoder())
                 source = route.source_address if route.source_address is not None else address
                 address = max(address, source) + 1
                 encoder = N2kSensorEncoder(source)
             else:
-                decoder = self.mav.setdefault(route.transport, MavlinkDecoder())
                 system_id = route.system_id or 1
                 key = (route.transport, system_id)
                 if key not in self._mav_encoders:  # one autopilot per system id: its sensors share the sequence
@@ -261,7 +254,7 @@ class _Inputs:
                 encoder = MavlinkSensorEncoder(encoder=self._mav_encoders[key])
             self.paths[spec.name] = _SensorPath(route.transport, protocol,
                                                 "position" if isinstance(spec, GnssSpec) else "heading",
-                                                encoder, decoder, system_id)
+                                                encoder, self.stages[route.transport], system_id)
         for transport in {route.transport for route in config.routes if protocols[route.transport] == "mavlink"}:
             timeout = float(next(t.settings for t in config.transports if t.name == transport)["heartbeat_timeout_s"])
             self._monitors[transport] = HeartbeatMonitor(timeout, start_t_s=0.0)
@@ -313,10 +306,10 @@ class _Inputs:
         if not last or transport in self.unplugged:
             return 0
         encoder = path.encoder
-        decoder = path.decoder
+        stage = path.stage
         if path.protocol == "nmea0183":
             for line in nmea0183_burst(encoder.encode(last), count, rng):
-                self._decode_nmea(transport, t, decoder, line, None)
+                stage.feed(t, line, None)
             return count
         if path.protocol == "nmea2000":
             fix = next((m for m in last if isinstance(m, PositionFix)), None)
@@ -324,12 +317,10 @@ class _Inputs:
                                            for _ in range((count + 2) // 3)]
             for frames in n2k_burst(path.kind, encoder.source_address, count, rng, fast):
                 for can_id, data in frames:
-                    for result in decoder.decode_frame(can_id, data, t):
-                        self._count_n2k(transport, t, result, None)
+                    stage.feed(t, data, None, can_id=can_id)
             return count
         for packet in mavlink_burst(encoder.encode(t, last), count, rng):
-            for result in decoder.decode_datagram(packet):
-                self._count_mav(transport, t, result, None)
+            stage.feed(t, packet, None)
         return count
 
     def heartbeats(self, t: float) -> None:
@@ -342,8 +333,7 @@ class _Inputs:
             for (transport, system_id), encoder in self._mav_encoders.items():
                 if transport in self.unplugged or t < self._silent_until.get((transport, system_id), -math.inf):
                     continue
-                for result in self.mav[transport].decode_datagram(encoder.heartbeat()):
-                    self._count_mav(transport, t, result, None)
+                self.stages[transport].feed(t, encoder.heartbeat(), None)
         for transport, monitor in self._monitors.items():
             for change in monitor.check(t):
                 system_id = None if change.key is None else change.key[0]
@@ -352,57 +342,21 @@ class _Inputs:
 
     def expire(self, t: float) -> None:
         """Fast packets left incomplete for too long become rejects (as the daemon's CAN reader does)."""
-        for transport, decoder in self.n2k.items():
-            for result in decoder.expire(t):
-                self._count_n2k(transport, t, result, None)
+        for stage in self.expiring:
+            stage.expire(t)
 
-    # ---------------------------------------------------------------- decoding
-    def _decode_nmea(self, transport: str, t: float, decoder: Nmea0183Decoder, data: bytes,
-                     out: list[Measurement] | None) -> None:
-        """Decode a chunk of a serial stream; count every frame; route its messages into ``out`` (None: drop)."""
-        health = self.health
-        for frame in decoder.feed_frames(data):
-            rejected = frame.rejected
-            if rejected is not None:
-                self.rejected += 1
-                health.count(transport, t, rejected.reason)
-                continue
-            health.count(transport, t)
-            if out is not None:
-                for message in frame.messages:
-                    name = self.router.nmea0183(transport, frame.sentence, message)
-                    if name is not None:
-                        out.append(Measurement(t, name, message))
+    def _heartbeat(self, transport: str, system_id: int, component_id: int, t: float) -> None:
+        """A HEARTBEAT decoded by a MAVLink input: to the link monitor of its transport."""
+        monitor = self._monitors.get(transport)
+        if monitor is not None:
+            change = monitor.beat((system_id, component_id), t)
+            if change is not None:
+                self.links.append(LinkStatus(t, link_source(transport, system_id), True, change.detail))
 
-    def _count_n2k(self, transport: str, t: float, result: Any, out: list[Measurement] | None) -> None:
-        if isinstance(result.item, Rejected):
-            self.rejected += 1
-            self.health.count(transport, t, result.item.reason)
-            return
-        self.health.count(transport, t)
-        if out is not None:
-            name = self.router.nmea2000(transport, result.source_address, result.item)
-            if name is not None:
-                out.append(Measurement(t, name, result.item))
-
-    def _count_mav(self, transport: str, t: float, result: Any, out: list[Measurement] | None) -> None:
-        item = result.item
-        if isinstance(item, Rejected):
-            self.rejected += 1
-            self.health.count(transport, t, item.reason)
-            return
-        self.health.count(transport, t)
-        if isinstance(item, LinkHeartbeat):
-            monitor = self._monitors.get(transport)
-            if monitor is not None:
-                change = monitor.beat((item.system_id, item.component_id), t)
-                if change is not None:
-                    self.links.append(LinkStatus(t, link_source(transport, item.system_id), True, change.detail))
-            return
-        if out is not None:
-            name = self.router.mavlink(transport, result.system_id, result.msg_name, item)
-            if name is not None:
-                out.append(Measurement(t, name, item))
+    @property
+    def rejected(self) -> int:
+        """Frames rejected by the decoders so far (malformed, invalid, unknown)."""
+        return sum(stage.rejected for stage in self.stages.values())
 
     def measurements(self, samples: list[SensorSample], out: list[Measurement]) -> None:
         """Encode each sample group (a sensor's messages of one instant) as its sensor would, decode it as
@@ -424,42 +378,22 @@ class _Inputs:
         path = self.paths.get(sensor)
         if path is None or path.transport in self.unplugged:  # an unplugged port delivers nothing
             return
-        transport = path.transport
         for message in messages:
             if isinstance(message, InvalidFix):
                 break
         else:
             if messages:
                 self.last_valid[sensor] = messages  # what a malformed burst is built from
-        protocol = path.protocol
-        if protocol == "nmea0183":
-            # _decode_nmea inlined, with the transport's counter taken once per group instead of through
-            # InputHealth.count per frame (two to four sentences every step; the same counts)
-            decoder = path.decoder
-            count = self.health.health[transport].add
-            route = self.router.nmea0183
+        stage = path.stage
+        if path.protocol == "nmea0183":
             for sentence in path.encoder.encode(messages):
-                for frame in decoder.feed_frames(sentence):
-                    rejected = frame.rejected
-                    if rejected is not None:
-                        self.rejected += 1
-                        count(t, rejected.reason)
-                        continue
-                    count(t)
-                    for message in frame.messages:
-                        name = route(transport, frame.sentence, message)
-                        if name is not None:
-                            out.append(Measurement(t, name, message))
-        elif protocol == "nmea2000":
-            decoder = path.decoder
+                stage.feed(t, sentence, out)
+        elif path.protocol == "nmea2000":
             for can_id, data in path.encoder.encode(messages):
-                for result in decoder.decode_frame(can_id, data, t):
-                    self._count_n2k(transport, t, result, out)
+                stage.feed(t, data, out, can_id=can_id)
         else:
-            decoder = path.decoder
             for packet in path.encoder.encode(t, messages):
-                for result in decoder.decode_datagram(packet):
-                    self._count_mav(transport, t, result, out)
+                stage.feed(t, packet, out)
 
 
 TRUTH_COLUMNS = ["t_s", "north_m", "east_m", "heading_rad", "north_total_m", "east_total_m", "heading_total_rad",
@@ -822,7 +756,7 @@ class LockstepSimulation:
                 inputs.measurements(plant.sensor_samples(t), measurements)
                 if inputs.actions:
                     inputs.apply_faults(t, 1)  # malformed bursts after them
-                if inputs.n2k:
+                if inputs.expiring:
                     inputs.expire(t)
                 if inputs.links:
                     inputs.health.apply_links(t, inputs.links, hub, alarms)
