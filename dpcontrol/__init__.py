@@ -1,7 +1,8 @@
 """dpcontrol — dynamic positioning controller service.
 
-Layers (imports point down only, see ``DESIGN.md`` §1):
+Layers (imports point down only, see ``docs/design.md`` §1):
 
+* :mod:`dpbase` (below every package): frames, geodesy, configuration schema, YAML, compiled-kernel helper;
 * numeric core: :mod:`dpcontrol.models`, :mod:`dpcontrol.estimation`,
   :mod:`dpcontrol.guidance`, :mod:`dpcontrol.control`, :mod:`dpcontrol.allocation`
   — numpy/scipy only, no clock, no I/O;

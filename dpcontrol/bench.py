@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from dpbase.geodesy import LocalFrame
 from dpcontrol.models.thrusters import ThrusterSpec
 from dpcontrol.models.vessels import SUPPLY, VesselData
 from dpcontrol.platform_info import cpu_times, describe, describe_steal, host_steal, machine_info
@@ -26,7 +27,6 @@ from dpcontrol.runtime.config import DaemonConfig, parse_config
 from dpcontrol.runtime.ingest import transport_inputs
 from dpcontrol.runtime.inputs import SensorRouter
 from dpcontrol.runtime.step import DpController, Mode
-from interfaces.geodesy import LocalFrame
 from interfaces.messages import FixQuality, Heading, Measurement, PositionErrorStats, PositionFix, RateOfTurn
 from interfaces.nmea0183 import encode_gga, encode_gst, encode_rot, encode_ths
 from interfaces.zenoh import schemas

@@ -20,8 +20,8 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from dpbase.schema import ConfigError
 from dpcontrol.arguments import positive_number
-from dpcontrol.models.schema import ConfigError
 
 EXIT_INTERRUPTED = 130  # as a shell reports a command ended by Ctrl-C (128 + SIGINT)
 

@@ -34,8 +34,8 @@ from rich.panel import Panel
 from rich.table import Table
 from rich.text import Text
 
+from dpbase.frames import ssa
 from dpcontrol.arguments import add_zenoh_arguments
-from dpcontrol.models.frames import ssa
 from interfaces.zenoh.config import LOCAL_DAEMON_CONNECT, ZenohConfig, ZenohOpenError
 from interfaces.zenoh.keys import ROLES, validate_vessel_id
 from interfaces.zenoh.node import AliveState, LatestSlot, ZenohNode

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from dpbase.yamlfile import load_yaml
 from dpcontrol.logtools import read_config, read_records
 from dpcontrol.runtime.config import DaemonConfig, load_config
 from dpcontrol.runtime.daemon import request_from_dict
@@ -27,7 +28,6 @@ from dpcontrol.runtime.ingest import transport_inputs
 from dpcontrol.runtime.inputs import SensorRouter
 from dpcontrol.runtime.step import DpController
 from dpcontrol.runtime.thrusters import ThrusterFeedback
-from dpcontrol.yamlfile import load_yaml
 from interfaces.messages import Measurement
 
 

@@ -25,8 +25,8 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
+from dpbase.yamlfile import load_yaml
 from dpcontrol.arguments import positive_number
-from dpcontrol.yamlfile import load_yaml
 
 # Small matrices only: a threaded BLAS costs ~100x per LAPACK call on a loaded 2-core machine.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
@@ -92,7 +92,7 @@ def _add_run(commands: Any) -> None:
 def _cmd_run(args: argparse.Namespace) -> int:
     import yaml  # noqa: PLC0415
 
-    from dpcontrol.models.schema import ConfigError  # noqa: PLC0415
+    from dpbase.schema import ConfigError  # noqa: PLC0415
     from dpcontrol.outputs import unwritable_folder  # noqa: PLC0415
     from sim_plant.bench.lockstep import SimulationTooLargeError  # noqa: PLC0415
     from sim_plant.bench.run import build_simulation, run_and_report  # noqa: PLC0415
@@ -248,7 +248,7 @@ def _scenario_path(text: str) -> Path:
 
 def _cmd_hil(args: argparse.Namespace) -> int:
     # imported here so that `sim-plant --help` and the stubs do not load zenoh, python-can, pymavlink
-    from dpcontrol.models.schema import ConfigError  # noqa: PLC0415
+    from dpbase.schema import ConfigError  # noqa: PLC0415
     from sim_plant.emulator import HilEmulator, HilError, HilOptions  # noqa: PLC0415
     from sim_plant.hil_config import load_controller_wiring  # noqa: PLC0415
     from sim_plant.scenario import load_scenario  # noqa: PLC0415
@@ -316,7 +316,7 @@ def _add_demo(commands: Any) -> None:
 def _cmd_demo(args: argparse.Namespace) -> int:
     import json  # noqa: PLC0415
 
-    from dpcontrol.models.schema import ConfigError  # noqa: PLC0415
+    from dpbase.schema import ConfigError  # noqa: PLC0415
     from dpcontrol.outputs import unwritable_folder  # noqa: PLC0415
     from sim_plant.bench.demo import DemoError, describe_summary, run_demo  # noqa: PLC0415
     from sim_plant.scenario import load_scenario  # noqa: PLC0415

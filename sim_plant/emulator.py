@@ -321,7 +321,7 @@ class HilEmulator:
 
     Raises
     ------
-    dpcontrol.models.schema.ConfigError
+    dpbase.schema.ConfigError
         The scenario's sensors do not fit the controller's (see :func:`sim_plant.hil_config.wire_sensors`).
     ValueError
         No zenoh endpoint can be derived.

@@ -36,8 +36,8 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
 
-from dpcontrol.models.schema import ConfigError, Section, join
-from dpcontrol.yamlfile import read_yaml_file
+from dpbase.schema import ConfigError, Section, join
+from dpbase.yamlfile import read_yaml_file
 from interfaces.zenoh.config import check_endpoint
 from interfaces.zenoh.keys import validate_vessel_id
 from sim_plant.encoding import HEADING_SENTENCES, POSITION_SENTENCES

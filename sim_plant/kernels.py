@@ -1,7 +1,7 @@
 """Compiled kernels of the plant: vessel derivative and RK4 step, mass matrices, thruster drives, wave sums.
 
 Each kernel is the arithmetic of one part of the plant, written as scalar code and loops (see
-:mod:`dpcontrol.jit` for why: 3-vectors, ≤ 8 drives and a few hundred wave components are too small
+:mod:`dpbase.jit` for why: 3-vectors, ≤ 8 drives and a few hundred wave components are too small
 for numpy's or the interpreter's per-call cost). The classes keep the configuration, validation and
 the decisions made once per step in Python (:class:`~sim_plant.vessel.DpVesselModel`,
 :class:`~sim_plant.thrusters.ThrusterDrives`, :class:`~sim_plant.environment.waves.WaveField`); one
@@ -28,8 +28,8 @@ import math
 
 import numpy as np
 
-from dpcontrol.jit import UniTuple, b1_1d, f8, f8_1d, f8_2d, i8, i8_1d, kernel, void
-from dpcontrol.models.frames import ssa_compiled as ssa
+from dpbase.frames import ssa_compiled as ssa
+from dpbase.jit import UniTuple, b1_1d, f8, f8_1d, f8_2d, i8, i8_1d, kernel, void
 
 i8_2d = i8[:, ::1]  # C-contiguous int64 2-D (the drive codes)
 

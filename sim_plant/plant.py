@@ -34,8 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dpcontrol.models.frames import ssa
-from interfaces.geodesy import LocalFrame
+from dpbase.frames import ssa
+from dpbase.geodesy import LocalFrame
 from sim_plant.environment.current import CurrentModel
 from sim_plant.environment.waves import CALM, SpectrumPeaks, WaveEnvironment, WaveSample
 from sim_plant.environment.wind import WindModel

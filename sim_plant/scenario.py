@@ -1,7 +1,7 @@
 """Scenario files (DESIGN.md §4.2): YAML → validated, frozen :class:`Scenario`.
 
 Every error names the file, the key path and what was expected, and a misspelt key is rejected
-by name (``dpcontrol.models.schema.Section.finish``)::
+by name (``dpbase.schema.Section.finish``)::
 
     sim_plant/scenarios/demo.yaml: sea_states[1].omega_peak_rads: expected a known key (valid keys here: ...)
 
@@ -54,9 +54,9 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from dpcontrol.models.schema import ConfigError, Section, join
+from dpbase.schema import ConfigError, Section, join
+from dpbase.yamlfile import read_yaml_file
 from dpcontrol.models.vessels import VesselData, vessel_from_config
-from dpcontrol.yamlfile import read_yaml_file
 from interfaces.messages import FixQuality
 from sim_plant.environment.spectra import SPECTRA
 from sim_plant.environment.waves import SeaState

@@ -3,7 +3,7 @@
 
 GNSS (per horizontal axis, NED): reported antenna position = total position + R(ψ_tot)·lever arm
 + Gauss–Markov error (σ_gm, T_gm: the slow multipath/atmosphere wander of a DGPS) + white noise σ,
-converted to WGS-84 with :meth:`interfaces.geodesy.LocalFrame.surface_to_geodetic`. Each fix is a
+converted to WGS-84 with :meth:`dpbase.geodesy.LocalFrame.surface_to_geodetic`. Each fix is a
 :class:`~interfaces.messages.PositionFix` (with quality, satellites, HDOP, UTC time), optionally
 followed by a :class:`~interfaces.messages.PositionErrorStats` (GST: 1-σ = √(σ² + σ_gm²) times the
 noise factor of an active ``gnss_noise`` fault).
@@ -32,8 +32,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from dpcontrol.models.frames import TWO_PI, ssa
-from interfaces.geodesy import LocalFrame, lever_arm_ned
+from dpbase.frames import TWO_PI, ssa
+from dpbase.geodesy import LocalFrame, lever_arm_ned
 from interfaces.messages import FixQuality, Heading, PositionErrorStats, PositionFix, RateOfTurn, SensorMessage
 from sim_plant.faults import Fault
 

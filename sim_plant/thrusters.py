@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dpcontrol.models.frames import ssa
+from dpbase.frames import ssa
 from dpcontrol.models.thrusters import ThrusterSpec
 from sim_plant.kernels import (
     AZIMUTH,

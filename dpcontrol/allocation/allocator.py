@@ -69,6 +69,7 @@ from typing import Any
 import daqp
 import numpy as np
 
+from dpbase.schema import ConfigError, Section, check_vector
 from dpcontrol.allocation.geometry import AZIMUTH, FIXED, ThrusterGeometry, weighted_pseudo_inverse
 from dpcontrol.allocation.kernels import (
     EPS_ANGLE,
@@ -105,7 +106,6 @@ from dpcontrol.allocation.kernels import (
     allocation_commands,
     allocation_constraints,
 )
-from dpcontrol.models.schema import ConfigError, Section, check_vector
 from dpcontrol.models.thrusters import ThrusterSpec
 
 _MAX_RUDDER_ENUMERATION = 3     # ahead/astern combinations tried for at most this many rudders

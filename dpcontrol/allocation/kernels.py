@@ -1,6 +1,6 @@
 """Compiled per-step kernels of the thrust allocation: the extended-thrust map, the QP's rows, the commands.
 
-Why kernels (see :mod:`dpcontrol.jit`): a vessel has 3–20 allocation variables, so the per-step work
+Why kernels (see :mod:`dpbase.jit`): a vessel has 3–20 allocation variables, so the per-step work
 around the QP solver — thrust windows, rudder wedges, azimuth polygons and rate cones, the commands
 from the solution — is a few hundred floating-point operations spread over a hundred numpy or Python
 calls. Here each stage is one loop over the thrusters in one compiled call:
@@ -50,8 +50,8 @@ import math
 
 import numpy as np
 
-from dpcontrol.jit import UniTuple, b1, b1_1d, f8, f8_1d, f8_2d, i8, i8_1d, kernel, void
-from dpcontrol.models.frames import ssa_compiled as ssa
+from dpbase.frames import ssa_compiled as ssa
+from dpbase.jit import UniTuple, b1, b1_1d, f8, f8_1d, f8_2d, i8, i8_1d, kernel, void
 
 i8_2d = i8[:, ::1]  # C-contiguous int64 2-D (an index table)
 

@@ -38,7 +38,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from dpcontrol.models.frames import ssa
+from dpbase.frames import ssa
 from dpcontrol.models.vessels import VesselData
 
 

@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
+from dpbase.schema import Section
 from dpcontrol.control.base import PositionController
 from dpcontrol.control.mrac import MracConfig, MracController, mrac_config_from_mapping
 from dpcontrol.control.pid import PidConfig, PidController, pid_config_from_mapping
-from dpcontrol.models.schema import Section
 from dpcontrol.models.vessels import VesselData
 
 CONTROL_KINDS: tuple[str, ...] = ("mrac", "pid")

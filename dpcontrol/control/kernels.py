@@ -1,7 +1,7 @@
 """Compiled per-step kernels of the position controllers: the MRAC-augmented PD (seed 003 eqs. (15)–(25))
 and the nonlinear PID / PD + bias feed-forward.
 
-Why kernels (see :mod:`dpcontrol.jit`): one MRAC step is three SISO loops of a few dozen floating-point
+Why kernels (see :mod:`dpbase.jit`): one MRAC step is three SISO loops of a few dozen floating-point
 operations each — the reference model's acceleration, the errors in the vessel-parallel frame, the control
 law, the adaptive law with its gating, dead zone, leakage and projection, and the exact advance of the
 reference model. As Python floats that was ~700 bytecodes and a list or tuple per intermediate, ≈ 30 µs per
@@ -44,8 +44,8 @@ import math
 
 import numpy as np
 
-from dpcontrol.jit import UniTuple, f8, f8_1d, f8_2d, i8, kernel
-from dpcontrol.models.frames import ssa_compiled as ssa
+from dpbase.frames import ssa_compiled as ssa
+from dpbase.jit import UniTuple, f8, f8_1d, f8_2d, i8, kernel
 
 C_BETA0, C_BETA1, C_G12, C_G_RATIO, C_GAMMA_M, C_GAMMA_C, C_DEAD_ZONE, C_ACCEL, C_VELOCITY = range(9)
 C_A2_LO, C_A2_HI, C_A1_LO, C_A1_HI, C_A2_NOMINAL, C_A1_NOMINAL, C_OMEGA, C_ZETA, C_FLAGS = range(9, 18)

@@ -114,6 +114,8 @@ from typing import Any
 import numpy as np
 from scipy.linalg import expm, solve_continuous_lyapunov
 
+from dpbase.frames import ssa
+from dpbase.schema import ConfigError, Section, check_vector
 from dpcontrol.control.base import (
     ALL_DOFS,
     ControlOutput,
@@ -163,8 +165,6 @@ from dpcontrol.control.kernels import (
 )
 from dpcontrol.control.pid import default_natural_period_s
 from dpcontrol.guidance.reference_model import Reference, ReferenceModel, ReferenceModelConfig, default_reference_config
-from dpcontrol.models.frames import ssa
-from dpcontrol.models.schema import ConfigError, Section, check_vector
 from dpcontrol.models.vessels import VesselData
 
 PARAMETER_NAMES: tuple[str, ...] = ("mass_surge_kg", "mass_sway_kg", "inertia_yaw_kgm2",

@@ -31,6 +31,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from dpbase.schema import ConfigError, Section, check_vector
 from dpcontrol.control.base import (
     ALL_DOFS,
     ControlOutput,
@@ -62,7 +63,6 @@ from dpcontrol.control.kernels import (
     pid_step,
 )
 from dpcontrol.guidance.reference_model import Reference
-from dpcontrol.models.schema import ConfigError, Section, check_vector
 from dpcontrol.models.vessels import CYBERSHIP2, VesselData
 
 IntegralAction = Literal["integrator", "bias_feedforward"]

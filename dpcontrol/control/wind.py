@@ -36,7 +36,7 @@ from typing import Protocol
 
 import numpy as np
 
-from dpcontrol.models.schema import ConfigError, Section
+from dpbase.schema import ConfigError, Section
 from dpcontrol.models.vessels import VesselData
 
 RHO_AIR_KGPM3 = 1.226  # ISA sea level, 15 °C

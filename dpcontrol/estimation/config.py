@@ -1,7 +1,7 @@
 """Configuration of the DP wave filters: fields, validation and the default tuning rule.
 
 :class:`WaveFilterConfig` is a frozen dataclass validated on construction (errors are
-:class:`~dpcontrol.models.schema.ConfigError` naming the field). :meth:`WaveFilterConfig.from_options`
+:class:`~dpbase.schema.ConfigError` naming the field). :meth:`WaveFilterConfig.from_options`
 builds one from the runtime's ``estimator`` section (kind, grid, ζ and a mapping of options) and
 reports errors with their key path (``estimator.weight_floor: expected a number in [0, 0.1], …``).
 
@@ -52,7 +52,7 @@ from typing import Any
 
 import numpy as np
 
-from dpcontrol.models.schema import ConfigError, Section, check_number, join
+from dpbase.schema import ConfigError, Section, check_number, join
 
 KINDS = ("mmae", "kf", "rpem", "raw")
 WF_FRAMES = ("body", "earth")

@@ -31,9 +31,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dpbase.frames import ssa
 from dpcontrol.estimation.discretize import discretize
 from dpcontrol.estimation.kalman import KalmanFilter, steady_state_filter
-from dpcontrol.models.frames import ssa
 
 MARINER_K_PER_S = 0.185
 MARINER_T_S = 107.3

@@ -39,9 +39,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import block_diag, cho_factor, cho_solve
 
+from dpbase.frames import ned_to_body
 from dpcontrol.estimation.discretize import van_loan_noise, zoh_input_matrix
 from dpcontrol.estimation.kalman import KalmanFilter
-from dpcontrol.models.frames import ned_to_body
 
 _DEG2 = (math.pi / 180.0) ** 2
 

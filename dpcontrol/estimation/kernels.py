@@ -2,7 +2,7 @@
 
 Each kernel is the arithmetic of one stage of :class:`~dpcontrol.estimation.wave_filter.BankWaveFilter`
 or :class:`~dpcontrol.estimation.weighting.BandLikelihood`, written as loops over the bank (see
-:mod:`dpcontrol.jit` for why: 8 models × 15 states are too small for numpy's per-call cost). The classes
+:mod:`dpbase.jit` for why: 8 models × 15 states are too small for numpy's per-call cost). The classes
 keep the configuration, validation, persistence and the decisions made once per step in Python; a
 step is four kernel calls.
 
@@ -18,8 +18,8 @@ import math
 
 import numpy as np
 
-from dpcontrol.jit import UniTuple, f8, f8_1d, f8_2d, f8_3d, i8, kernel, void
-from dpcontrol.models.frames import ssa_compiled as ssa
+from dpbase.frames import ssa_compiled as ssa
+from dpbase.jit import UniTuple, f8, f8_1d, f8_2d, f8_3d, i8, kernel, void
 
 TWO_PI = 2.0 * math.pi
 NO_INDEX = -1   # an index argument for a block the model does not have (no wave states)

@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from dpbase.frames import ssa
 from dpcontrol.estimation.config import WaveFilterConfig
 from dpcontrol.estimation.discretize import discretize, oscillator_discretization
 from dpcontrol.estimation.kalman import KalmanFilter, is_covariance, solve_prior_covariance
@@ -42,7 +43,6 @@ from dpcontrol.estimation.wave_filter import (
     _FrameFilter,
     build_design_model,
 )
-from dpcontrol.models.frames import ssa
 
 _MIN_VARIANCE = 1e-300
 

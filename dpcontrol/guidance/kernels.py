@@ -1,6 +1,6 @@
 """Compiled per-step kernel of the reference model (:mod:`dpcontrol.guidance.reference_model`).
 
-Why a kernel (see :mod:`dpcontrol.jit`): a step of the third-order model with its speed, braking and
+Why a kernel (see :mod:`dpbase.jit`): a step of the third-order model with its speed, braking and
 acceleration limits is ~60 floating-point operations and four angle wraps per integration sub-step;
 as Python floats, with the checks and the output arrays around it, that is ~500 bytecodes per control
 period. Here it is one call on the model's state array.
@@ -25,8 +25,8 @@ import math
 
 import numpy as np
 
-from dpcontrol.jit import b1, f8, f8_1d, f8_2d, kernel
-from dpcontrol.models.frames import ssa_compiled as ssa
+from dpbase.frames import ssa_compiled as ssa
+from dpbase.jit import b1, f8, f8_1d, f8_2d, kernel
 
 K_OMEGA, K_ZETA, K_RATE, K_SPEED, K_ACCEL, K_YAW_RATE, K_YAW_ACCEL = 0, 3, 6, 7, 8, 9, 10
 K_SIZE = 11

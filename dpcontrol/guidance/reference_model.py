@@ -37,6 +37,8 @@ from typing import Any
 
 import numpy as np
 
+from dpbase.frames import ssa
+from dpbase.schema import ConfigError, Section, check_vector
 from dpcontrol.guidance.kernels import (
     K_ACCEL,
     K_OMEGA,
@@ -53,8 +55,6 @@ from dpcontrol.guidance.kernels import (
     S_VELOCITY,
     reference_step,
 )
-from dpcontrol.models.frames import ssa
-from dpcontrol.models.schema import ConfigError, Section, check_vector
 from dpcontrol.models.vessels import VesselData
 
 # Froude-scaled defaults (see :func:`default_reference_config`), stated for a 100 m vessel.

@@ -1,1 +1,2 @@
-"""Vessel data, thruster descriptions, frames and config validation (pure; shared with the plant)."""
+"""Vessel data and thruster descriptions (pure; shared with the plant). Frames and configuration checks are in
+:mod:`dpbase`."""

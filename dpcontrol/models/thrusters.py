@@ -11,7 +11,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Literal
 
-from dpcontrol.models.schema import ConfigError, Section
+from dpbase.schema import ConfigError, Section
 
 ThrusterKind = Literal["tunnel", "azimuth", "propeller", "propeller_rudder"]
 THRUSTER_KINDS: tuple[str, ...] = ("tunnel", "azimuth", "propeller", "propeller_rudder")

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from dpcontrol.models.schema import ConfigError, Section, parse_list
+from dpbase.schema import ConfigError, Section, parse_list
 from dpcontrol.models.thrusters import ThrusterSpec, parse_thruster
 
 RHO_SEA_KGPM3 = 1025.0

@@ -15,15 +15,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from dpbase.schema import ConfigError, Section, join, parse_list
+from dpbase.yamlfile import load_yaml, read_yaml_file
 from dpcontrol.allocation.allocator import allocator_kwargs_from_mapping
 from dpcontrol.allocation.consequence import FailureGroup
 from dpcontrol.control import AutopilotConfig, MracConfig, PidConfig, control_config_from_mapping
 from dpcontrol.estimation import WaveFilterConfig
 from dpcontrol.guidance import ReferenceModelConfig, reference_config_from_mapping
-from dpcontrol.models.schema import ConfigError, Section, join, parse_list
 from dpcontrol.models.vessels import VesselData, vessel_from_config
 from dpcontrol.runtime.hub import HubConfig, SensorConfig, SensorKind
-from dpcontrol.yamlfile import load_yaml, read_yaml_file
 from interfaces.recorder import RecorderSettings
 from interfaces.zenoh.config import ZenohConfig
 

@@ -19,10 +19,10 @@ from typing import Any
 
 import numpy as np
 
+from dpbase.frames import ned_to_body, ssa
 from dpcontrol.estimation import WaveFilter, WaveFilterConfig, WaveFilterOutput, make_wave_filter
 from dpcontrol.estimation.heading import HeadingKalmanFilter, HeadingModel, heading_model
 from dpcontrol.estimation.kalman_bucy import POSITION, VELOCITY, KalmanBucyFilter, blue_lady_model
-from dpcontrol.models.frames import ned_to_body, ssa
 from dpcontrol.models.vessels import VesselData
 
 _NO_WEIGHTS: tuple[float, ...] = ()

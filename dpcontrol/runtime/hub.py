@@ -45,9 +45,9 @@ from collections.abc import Iterable, Sequence
 from dataclasses import InitVar, dataclass, field
 from enum import Enum
 
-from dpcontrol.models.frames import ssa
+from dpbase.frames import ssa
+from dpbase.geodesy import LocalFrame, lever_arm_ned
 from dpcontrol.runtime.alarms import AlarmRegistry, Severity
-from interfaces.geodesy import LocalFrame, lever_arm_ned
 from interfaces.messages import (
     Heading,
     Measurement,

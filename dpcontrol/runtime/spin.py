@@ -13,7 +13,7 @@ Why a compiled kernel and not a Python ``while clock() < deadline: pass``: a Pyt
 GIL. The sensor reader threads then queue for it and take it at the control step's first kernel call
 (the kernels release the GIL), so the loop thread waited inside its own step: the step's off-CPU time
 had a p99 of 0.9–1.9 ms against 0.2–0.7 ms (same runs). :func:`_burn` releases the GIL
-(``nogil``, :mod:`dpcontrol.jit`) for each slice of about :data:`SLICE_S`, so the readers decode and
+(``nogil``, :mod:`dpbase.jit`) for each slice of about :data:`SLICE_S`, so the readers decode and
 queue their messages while the loop spins, as they do while it sleeps.
 """
 
@@ -23,7 +23,7 @@ import threading
 import time
 from collections.abc import Callable
 
-from dpcontrol.jit import f8, i8, kernel
+from dpbase.jit import f8, i8, kernel
 
 SLICE_S = 20e-6  # one spin slice [s]: the cycle starts at most about this late; the readers get the GIL between
 CALIBRATION_ITERATIONS = 100_000

@@ -31,12 +31,13 @@ from typing import Any
 
 import numpy as np
 
+from dpbase.frames import body_to_ned
+from dpbase.geodesy import LocalFrame
+from dpbase.schema import ConfigError
 from dpcontrol.allocation import AllocationResult, ThrustAllocator
 from dpcontrol.control import ALL_DOFS, HEADING_ONLY, AutopilotConfig, HeadingAutopilot, MracController, make_controller
 from dpcontrol.estimation import WaveFilterOutput
 from dpcontrol.guidance import Reference, ReferenceModel
-from dpcontrol.models.frames import body_to_ned
-from dpcontrol.models.schema import ConfigError
 from dpcontrol.runtime.alarms import AlarmRegistry, Severity
 from dpcontrol.runtime.config import DaemonConfig
 from dpcontrol.runtime.consequence import ConsequenceMonitor, ConsequenceReport
@@ -44,7 +45,6 @@ from dpcontrol.runtime.deviation import DeviationMonitor
 from dpcontrol.runtime.estimators import WAVE_FILTER_KINDS, MassAdaptiveEstimator, make_estimator
 from dpcontrol.runtime.hub import HubOutput, SensorHub
 from dpcontrol.runtime.thrusters import ThrusterFeedback, ThrusterMonitor
-from interfaces.geodesy import LocalFrame
 from interfaces.messages import Measurement
 from interfaces.zenoh.schemas import RequestOutcome, SetpointRequest
 

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from dpcontrol.jit import b1_1d, f8, f8_1d, f8_2d, i8, i8_1d, kernel
+from dpbase.jit import b1_1d, f8, f8_1d, f8_2d, i8, i8_1d, kernel
 from dpcontrol.models.thrusters import ThrusterSpec
 from dpcontrol.runtime.alarms import AlarmRegistry, Severity
 from dpcontrol.runtime.config import ThrusterMonitorSettings
@@ -192,7 +192,7 @@ class ThrusterMonitor:
 
     Notes
     -----
-    The numbers of every drive advance in one compiled call (:func:`_advance`, see :mod:`dpcontrol.jit`): the
+    The numbers of every drive advance in one compiled call (:func:`_advance`, see :mod:`dpbase.jit`): the
     per-drive Python loop it replaced cost ≈ 3 µs a drive and step (lockstep profile of the shuttle tanker's six
     drives: 20 → 12 µs per update). It reports per drive which alarms and texts are due; the alarm calls stay
     here, and are skipped entirely on a step without any (the usual one).

@@ -39,7 +39,7 @@ from typing import Any, Final, NamedTuple
 
 from pymavlink.dialects.v20 import common as mavlink2
 
-from dpcontrol.models.frames import TWO_PI, ssa
+from dpbase.frames import TWO_PI, ssa
 from interfaces.messages import (
     Attitude,
     CourseOverGround,

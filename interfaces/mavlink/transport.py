@@ -22,7 +22,7 @@ from collections.abc import Callable, Hashable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from dpcontrol.models.schema import ConfigError, Section, join
+from dpbase.schema import ConfigError, Section, join
 from interfaces.mavlink.codec import (
     HeartbeatMonitor,
     LinkChange,
@@ -87,7 +87,7 @@ class MavlinkUdpConfig:
 
         Raises
         ------
-        dpcontrol.models.schema.ConfigError
+        dpbase.schema.ConfigError
             Naming the key path and what was expected.
         """
         section = Section.of(value, path)

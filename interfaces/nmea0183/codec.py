@@ -49,8 +49,8 @@ from typing import NamedTuple
 
 import pynmea2
 
-from dpcontrol.models.frames import ssa
-from interfaces.geodesy import WGS84_A_M, WGS84_E2
+from dpbase.frames import ssa
+from dpbase.geodesy import WGS84_A_M, WGS84_E2
 from interfaces.messages import (
     CourseOverGround,
     FixQuality,

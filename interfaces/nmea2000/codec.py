@@ -38,7 +38,7 @@ from typing import Final, NamedTuple
 from nmea2000 import _canboat as canboat
 from nmea2000 import backend
 
-from dpcontrol.models.frames import TWO_PI, ssa
+from dpbase.frames import TWO_PI, ssa
 from interfaces.messages import (
     Attitude,
     CourseOverGround,

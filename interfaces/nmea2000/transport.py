@@ -36,7 +36,7 @@ from typing import Any, Literal
 
 import can
 
-from dpcontrol.models.schema import ConfigError, Section
+from dpbase.schema import ConfigError, Section
 from interfaces.messages import LinkStatus, Measurement, Rejected, RejectedInput
 from interfaces.nmea2000.codec import Frame, N2kDecoder, n2k_source_name
 
@@ -98,7 +98,7 @@ class CanBusConfig:
 
         Raises
         ------
-        dpcontrol.models.schema.ConfigError
+        dpbase.schema.ConfigError
             Naming the key path and what was expected.
         """
         section = Section.of(value, path)

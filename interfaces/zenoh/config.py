@@ -31,7 +31,7 @@ from typing import Any
 
 import zenoh
 
-from dpcontrol.models.schema import ConfigError, Section, join
+from dpbase.schema import ConfigError, Section, join
 
 log = logging.getLogger(__name__)
 
@@ -143,7 +143,7 @@ class ZenohConfig:
 
         Raises
         ------
-        dpcontrol.models.schema.ConfigError
+        dpbase.schema.ConfigError
         """
         section = Section.of(value, path)
         defaults = cls()

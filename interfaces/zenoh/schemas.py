@@ -103,7 +103,7 @@ from typing import Any, Final
 
 import numpy as np
 
-from dpcontrol.models.frames import body_to_ned, ssa
+from dpbase.frames import body_to_ned, ssa
 from interfaces.messages import Rejected
 
 # --------------------------------------------------------------------------------------------

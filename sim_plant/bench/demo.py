@@ -44,10 +44,10 @@ from typing import Any
 import numpy as np
 import yaml
 
-from dpcontrol.models.schema import ConfigError
+from dpbase.schema import ConfigError
+from dpbase.yamlfile import load_yaml, read_yaml_file
 from dpcontrol.platform_info import cpu_times, describe_steal, host_steal
 from dpcontrol.runtime.config import CONTROLLER_SECTIONS
-from dpcontrol.yamlfile import load_yaml, read_yaml_file
 from interfaces.zenoh.loopback import free_tcp_port, free_udp_port
 
 DEMO_SENSORS = [

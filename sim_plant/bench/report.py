@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from scipy.signal import welch
 
-from dpcontrol.models.frames import ssa_array
+from dpbase.frames import ssa_array
 from dpcontrol.runtime.alarms import AlarmEvent
 from dpcontrol.runtime.config import DaemonConfig
 from dpcontrol.runtime.transport_health import MIN_BAD_FOR_ALARM

@@ -39,7 +39,7 @@ def build_simulation(scenario: Scenario, controller_config: str | Path | None = 
         return LockstepSimulation(scenario, parse_config(mapping, file=f"<scenario {scenario.name}>"))
     config = load_config(controller_config)
     if overrides:
-        from dpcontrol.yamlfile import load_yaml  # noqa: PLC0415
+        from dpbase.yamlfile import load_yaml  # noqa: PLC0415
 
         base = load_yaml(config.source_text) or {}
         base.update(overrides)

@@ -31,7 +31,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from dpcontrol.models.frames import ssa
+from dpbase.frames import ssa
 from sim_plant.environment.rao import HullDimensions, drift_direction_factors, motion_raos, reflection_coefficient
 from sim_plant.environment.spectra import GRAVITY_MPS2, SPECTRA, WaveComponents, realise_waves, wave_spectrum
 from sim_plant.kernels import W_B, W_PSI, W_X, WAVE_WEIGHTS, wave_sums

@@ -16,7 +16,7 @@ import yaml
 from hypothesis import HealthCheck, given, note, settings
 from hypothesis import strategies as st
 
-from dpcontrol.models.schema import ConfigError
+from dpbase.schema import ConfigError
 from dpcontrol.runtime.config import parse_config
 from sim_plant.bench.lockstep import LockstepSimulation, controller_mapping
 from sim_plant.scenario import builtin_scenario_path, load_scenario, parse_scenario

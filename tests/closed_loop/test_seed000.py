@@ -27,7 +27,7 @@ import math
 import numpy as np
 import pytest
 
-from dpcontrol.models.frames import ssa_array
+from dpbase.frames import ssa_array
 from sim_plant.bench.lockstep import RunResult
 from sim_plant.bench.report import wrap_headings
 from sim_plant.bench.run import build_simulation

@@ -28,7 +28,7 @@ from typing import Any
 
 import pytest
 
-from interfaces.geodesy import geodetic_to_ecef
+from dpbase.geodesy import geodetic_to_ecef
 from interfaces.nmea2000.logs import decode_candump_log
 
 CORPUS = Path(__file__).parents[2] / "tests" / "corpora" / "data" / "canboat-n2k"

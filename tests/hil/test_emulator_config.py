@@ -9,7 +9,7 @@ from typing import Any
 import pytest
 import yaml
 
-from dpcontrol.models.schema import ConfigError
+from dpbase.schema import ConfigError
 from sim_plant.emulator import HilOptions
 from sim_plant.hil_config import (
     CanTransport,

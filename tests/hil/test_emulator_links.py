@@ -18,8 +18,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from dpcontrol.models.frames import ssa
-from interfaces.geodesy import LocalFrame
+from dpbase.frames import ssa
+from dpbase.geodesy import LocalFrame
 from interfaces.mavlink.transport import MavlinkUdpReader
 from interfaces.messages import Heading, LinkHeartbeat, Measurement, PositionErrorStats, PositionFix, RateOfTurn
 from interfaces.nmea0183 import SerialReader

@@ -8,7 +8,7 @@ import math
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from interfaces.geodesy import WGS84_A_M, WGS84_B_M, WGS84_E2, WGS84_EP2, LocalFrame, ecef_to_geodetic, geodetic_to_ecef
+from dpbase.geodesy import WGS84_A_M, WGS84_B_M, WGS84_E2, WGS84_EP2, LocalFrame, ecef_to_geodetic, geodetic_to_ecef
 
 
 def heikkinen(x_m: float, y_m: float, z_m: float) -> tuple[float, float, float]:

@@ -13,7 +13,7 @@ from collections.abc import Callable
 
 import pytest
 
-from dpcontrol.models.schema import ConfigError
+from dpbase.schema import ConfigError
 from interfaces.mavlink.codec import MavlinkEncoder
 from interfaces.mavlink.probe import sequence_of
 from interfaces.mavlink.transport import MavlinkUdpConfig, MavlinkUdpReader, MavlinkUdpSender, RawPacket

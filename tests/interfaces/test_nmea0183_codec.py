@@ -9,8 +9,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from dpcontrol.models.frames import ssa
-from interfaces.geodesy import LocalFrame
+from dpbase.frames import ssa
+from dpbase.geodesy import LocalFrame
 from interfaces.messages import (
     CourseOverGround,
     FixQuality,

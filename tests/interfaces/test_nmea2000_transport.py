@@ -18,7 +18,7 @@ from collections.abc import Callable
 import can
 import pytest
 
-from dpcontrol.models.schema import ConfigError
+from dpbase.schema import ConfigError
 from interfaces.messages import (
     Attitude,
     CourseOverGround,

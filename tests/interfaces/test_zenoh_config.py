@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from dpcontrol.models.schema import ConfigError
+from dpbase.schema import ConfigError
 from interfaces.zenoh.config import ZenohConfig, ZenohOpenError, check_endpoint, listens_everywhere, open_session
 from interfaces.zenoh.loopback import free_tcp_port, loopback_endpoint
 from interfaces.zenoh.node import ZenohNode

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from dpcontrol.models.frames import ssa
+from dpbase.frames import ssa
 from interfaces.messages import Rejected
 from interfaces.zenoh import schemas as sc
 from interfaces.zenoh.keys import VesselKeys, validate_vessel_id

@@ -13,6 +13,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
+from dpbase.frames import ssa
+from dpbase.schema import ConfigError
 from dpcontrol.allocation import (
     AllocationResult,
     ThrustAllocator,
@@ -20,8 +22,6 @@ from dpcontrol.allocation import (
     weighted_pseudo_inverse,
 )
 from dpcontrol.allocation.geometry import AZIMUTH, FIXED, RUDDER
-from dpcontrol.models.frames import ssa
-from dpcontrol.models.schema import ConfigError
 from dpcontrol.models.thrusters import ThrusterSpec
 from dpcontrol.models.vessels import BUILTIN_VESSELS, SUPPLY
 

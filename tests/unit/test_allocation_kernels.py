@@ -8,11 +8,11 @@ import math
 import numpy as np
 import pytest
 
+from dpbase.frames import ssa
 from dpcontrol.allocation import ThrustAllocator
 from dpcontrol.allocation.allocator import AllocationResult, _result
 from dpcontrol.allocation.geometry import AZIMUTH, RUDDER
 from dpcontrol.allocation.kernels import EPS_ANGLE, TWO_PI, _sector_window
-from dpcontrol.models.frames import ssa
 from dpcontrol.models.thrusters import ThrusterSpec
 from dpcontrol.models.vessels import BUILTIN_VESSELS
 from dpcontrol.runtime.alarms import AlarmRegistry

@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 import yaml
 
+from dpbase.schema import ConfigError
 from dpcontrol.cli import main
-from dpcontrol.models.schema import ConfigError
 from dpcontrol.runtime.config import RealtimeSettings, ReplicaSettings, load_config, parse_config
 from dpcontrol.runtime.daemon import LoopStats
 

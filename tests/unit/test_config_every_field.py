@@ -16,8 +16,8 @@ from typing import Any
 import pytest
 import yaml
 
+from dpbase.schema import ConfigError
 from dpcontrol.cli import main
-from dpcontrol.models.schema import ConfigError
 from dpcontrol.runtime.config import parse_config
 from dpcontrol.runtime.hub import HubConfig
 

@@ -11,8 +11,8 @@ from typing import Any
 import numpy as np
 import pytest
 
+from dpbase.schema import ConfigError
 from dpcontrol.allocation.consequence import FailureGroup, WorstCaseFailure
-from dpcontrol.models.schema import ConfigError
 from dpcontrol.models.vessels import BUILTIN_VESSELS
 from dpcontrol.runtime.alarms import AlarmRegistry, Severity
 from dpcontrol.runtime.config import ConsequenceSettings, parse_config

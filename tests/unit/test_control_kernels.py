@@ -16,13 +16,13 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
+from dpbase.frames import ssa
 from dpcontrol.control import MracController, default_mrac_config
 from dpcontrol.control.base import ALL_DOFS, HEADING_ONLY
 from dpcontrol.control.kernels import reference_transition
 from dpcontrol.control.mrac import PARAMETER_NAMES, REFERENCE_MODEL_NAMES
 from dpcontrol.control.pid import PidController, default_pid_config
 from dpcontrol.guidance import Reference, ReferenceModel, ReferenceModelConfig
-from dpcontrol.models.frames import ssa
 from dpcontrol.models.vessels import CYBERSHIP2, SHUTTLE_TANKER, SUPPLY
 
 TOLERANCE = 1e-6  # the controllers' saturation tolerance (relative)

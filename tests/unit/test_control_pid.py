@@ -8,13 +8,13 @@ import math
 import numpy as np
 import pytest
 
+from dpbase.frames import rotation_nb
+from dpbase.schema import ConfigError
 from dpcontrol.control import ALL_DOFS, HEADING_ONLY, PidConfig, PidController, default_pid_config
 from dpcontrol.control.factory import control_config_from_mapping, make_controller
 from dpcontrol.control.mrac import MracController
 from dpcontrol.control.pid import SEED000_KD, SEED000_KI, SEED000_KP, pole_placement_gains
 from dpcontrol.guidance import Reference, ReferenceModel, default_reference_config
-from dpcontrol.models.frames import rotation_nb
-from dpcontrol.models.schema import ConfigError
 from dpcontrol.models.vessels import CYBERSHIP2, SUPPLY
 
 BIAS_B = np.array([0.3, -0.2, 0.05])  # constant environmental force on the model [N, N, N·m]

@@ -9,6 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from dpbase.schema import ConfigError
 from dpcontrol.control import (
     BlendermannCoefficients,
     TabulatedCoefficients,
@@ -16,7 +17,6 @@ from dpcontrol.control import (
     wind_feedforward_from_mapping,
 )
 from dpcontrol.control.wind import BLENDERMANN_TYPES, RHO_AIR_KGPM3, default_wind_coefficients
-from dpcontrol.models.schema import ConfigError
 from dpcontrol.models.vessels import BUILTIN_VESSELS, SUPPLY
 
 WIND = WindFeedforward.for_vessel(SUPPLY)

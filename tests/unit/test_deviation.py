@@ -11,8 +11,8 @@ from typing import Any
 import numpy as np
 import pytest
 
+from dpbase.schema import ConfigError
 from dpcontrol.bench import bench_config
-from dpcontrol.models.schema import ConfigError
 from dpcontrol.runtime.alarms import AlarmRegistry, Severity
 from dpcontrol.runtime.config import DeviationSettings, parse_config
 from dpcontrol.runtime.deviation import CLEAR_FRACTION, DeviationMonitor

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from dpbase.frames import ssa
 from dpcontrol.estimation.discretize import discretize
 from dpcontrol.estimation.heading import (
     MARINER_COMPASS_STD_RAD,
@@ -19,7 +20,6 @@ from dpcontrol.estimation.heading import (
     heading_model,
     mariner_heading_filter,
 )
-from dpcontrol.models.frames import ssa
 from dpcontrol.models.vessels import MARINER
 
 

@@ -12,11 +12,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_estimation_support import jonswap_motion, measure, simulate_vessel
 
+from dpbase.frames import ssa
+from dpbase.schema import ConfigError
 from dpcontrol.estimation import WaveFilter, WaveFilterConfig, make_wave_filter
 from dpcontrol.estimation.rpem import RpemWaveFilter
 from dpcontrol.estimation.wave_filter import BankWaveFilter, TimeVaryingWaveFilter
-from dpcontrol.models.frames import ssa
-from dpcontrol.models.schema import ConfigError
 from dpcontrol.models.vessels import CYBERSHIP2, SUPPLY
 
 DT = 0.2

@@ -10,6 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from dpbase.schema import ConfigError
 from dpcontrol.guidance import (
     Reference,
     ReferenceModel,
@@ -17,7 +18,6 @@ from dpcontrol.guidance import (
     default_reference_config,
     reference_config_from_mapping,
 )
-from dpcontrol.models.schema import ConfigError
 from dpcontrol.models.vessels import BUILTIN_VESSELS, SHUTTLE_TANKER, SUPPLY
 
 TANKER_LIKE = ReferenceModelConfig(natural_period_s=(200.0, 200.0, 200.0), relative_damping=(1.0, 1.0, 1.0),

@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
+from dpbase.geodesy import LocalFrame
 from dpcontrol.runtime.alarms import AlarmRegistry
 from dpcontrol.runtime.hub import HubConfig, SensorConfig, SensorHub, SensorKind, SensorState
-from interfaces.geodesy import LocalFrame
 from interfaces.messages import FixQuality, Heading, Measurement, PositionErrorStats, PositionFix
 
 DATUM = LocalFrame(63.43, 10.39)

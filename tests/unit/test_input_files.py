@@ -1,6 +1,6 @@
 """Files handed to the tools that are not what they should be — a binary picked by mistake, a Latin-1
 file, a folder, a file that is not a recording — get one line naming the file and what was expected,
-and a usage exit code; never a traceback (``dpcontrol.yamlfile``, ``dpcontrol replay`` / ``log export``)."""
+and a usage exit code; never a traceback (``dpbase.yamlfile``, ``dpcontrol replay`` / ``log export``)."""
 
 from __future__ import annotations
 
@@ -10,11 +10,11 @@ from pathlib import Path
 import pytest
 import yaml
 
+from dpbase.schema import ConfigError
+from dpbase.yamlfile import read_yaml_file
 from dpcontrol.cli import main as dpcontrol_main
-from dpcontrol.models.schema import ConfigError
 from dpcontrol.replay import replay
 from dpcontrol.runtime.config import load_config
-from dpcontrol.yamlfile import read_yaml_file
 from sim_plant.cli import main as sim_plant_main
 from sim_plant.hil_config import load_controller_wiring
 from sim_plant.scenario import load_scenario

@@ -57,6 +57,16 @@ def test_interfaces_do_not_import_the_controller() -> None:
     assert _violations(_files("interfaces"), CONTROLLER | {"sim_plant"}) == []
 
 
+def test_interfaces_import_nothing_of_dpcontrol() -> None:
+    """The shared vocabulary (frames, configuration checks) is in dpbase, below both."""
+    assert _violations(_files("interfaces"), {"dpcontrol"}) == []
+
+
+def test_the_base_package_imports_no_project_package() -> None:
+    assert _files("dpbase"), "dpbase has no sources"
+    assert _violations(_files("dpbase"), {"dpcontrol", "interfaces", "sim_plant"}) == []
+
+
 def test_plant_never_imports_the_controller() -> None:
     files = [p for p in _files("sim_plant") if "bench" not in p.relative_to(ROOT).parts]
     assert files, "sim_plant has no sources"

@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from dpcontrol.models.frames import ssa
+from dpbase.frames import ssa
 from dpcontrol.models.thrusters import ThrusterSpec
 from dpcontrol.models.vessels import BUILTIN_VESSELS, MARINER, SHUTTLE_TANKER, SUPPLY
 from sim_plant.environment.rao import HullDimensions, motion_raos

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from dpcontrol.models.schema import ConfigError
+from dpbase.schema import ConfigError
 from sim_plant.faults import FAULT_KINDS
 from sim_plant.plant import Plant
 from sim_plant.scenario import builtin_scenario_names, builtin_scenario_path, load_scenario, parse_scenario

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from interfaces.geodesy import LocalFrame
+from dpbase.geodesy import LocalFrame
 from interfaces.messages import FixQuality, Heading, PositionErrorStats, PositionFix, RateOfTurn
 from sim_plant.faults import Fault
 from sim_plant.sensors import GnssSensor, GnssSpec, GyroSensor, GyroSpec, InvalidFix

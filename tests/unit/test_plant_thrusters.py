@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dpcontrol.models.frames import ssa
+from dpbase.frames import ssa
 from dpcontrol.models.thrusters import ThrusterSpec
 from dpcontrol.models.vessels import BUILTIN_VESSELS, SUPPLY
 from sim_plant.thrusters import CommandError, ThrusterCommand, ThrusterDrives

@@ -17,6 +17,7 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
+from dpbase.geodesy import LocalFrame
 from dpcontrol.bench import bench_config
 from dpcontrol.guidance import Reference
 from dpcontrol.models.thrusters import ThrusterSpec
@@ -27,7 +28,6 @@ from dpcontrol.runtime.inputs import SensorRouter
 from dpcontrol.runtime.step import DpController, Mode
 from dpcontrol.runtime.thrusters import ThrusterFeedback, ThrusterMonitor
 from dpcontrol.runtime.transport_health import TransportHealth
-from interfaces.geodesy import LocalFrame
 from interfaces.messages import FixQuality, Heading, Measurement, PositionFix, RateOfTurn
 
 

@@ -1,4 +1,4 @@
-"""Configuration and scenario files read numbers as YAML 1.2 does (``dpcontrol.yamlfile.load_yaml``).
+"""Configuration and scenario files read numbers as YAML 1.2 does (``dpbase.yamlfile.load_yaml``).
 
 PyYAML alone implements YAML 1.1, where ``6.0e6`` and ``1e3`` are strings: a mass of ``6.0e6`` kg was
 refused as "expected a number". Users write floats that way, and every other YAML reader takes them as floats.
@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 import yaml
 
+from dpbase.yamlfile import load_yaml
 from dpcontrol.runtime.config import load_config
-from dpcontrol.yamlfile import load_yaml
 
 ROOT = Path(__file__).resolve().parents[2]
 

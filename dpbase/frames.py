@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from dpcontrol.jit import f8, kernel
+from dpbase.jit import f8, kernel
 
 TWO_PI = 2.0 * math.pi
 

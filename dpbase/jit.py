@@ -18,7 +18,7 @@ Settings, and why:
   (``deploy/dpcontrol.service`` sets it to the unit's ``CacheDirectory``). Where no cache directory is
   writable the kernels are compiled at every start instead of failing;
   One limit of numba's cache: a kernel that calls a kernel of *another* file (``ssa_compiled`` of
-  :mod:`dpcontrol.models.frames`) is cached together with it, and is not recompiled when only that
+  :mod:`dpbase.frames`) is cached together with it, and is not recompiled when only that
   other file changes — after editing a shared kernel, delete the ``__pycache__`` folders (a fresh
   install or checkout has none);
 * ``fastmath=False`` — IEEE arithmetic: no reassociation, so a run is reproducible and a recording

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import yaml
 
-from dpcontrol.models.schema import ConfigError
+from dpbase.schema import ConfigError
 
 
 class Yaml12NumbersLoader(yaml.SafeLoader):
