@@ -10,7 +10,11 @@ the file (when known), the key path and what was expected::
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable, Mapping, Sequence
+import re
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from contextvars import ContextVar
+from dataclasses import dataclass
 from typing import Any, TypeVar
 
 import numpy as np
@@ -44,6 +48,80 @@ class ConfigError(ValueError):
 _MISSING = object()
 
 
+@dataclass(frozen=True)
+class KeyRecord:
+    """One configuration key as a parser read it (see :func:`recording_keys`).
+
+    Attributes
+    ----------
+    path : str
+        Key path with list indices folded: ``sensors[].rate_hz``.
+    type : str
+        ``number``, ``integer``, ``string``, ``boolean``, ``mapping``, ``list``, ``vector``, ``matrix``, or
+        ``value`` (read raw: the parser checks it itself).
+    default : object
+        The default, :data:`REQUIRED` when the key must be given.
+    detail : str
+        Bounds or choices (``> 0``, ``one of a, b``); empty when none.
+    when : str
+        ``kind = mmae`` when the key is read only for that kind of its section; empty otherwise.
+    """
+
+    path: str
+    type: str
+    default: object
+    detail: str
+    when: str
+
+
+REQUIRED = _MISSING
+"""The default of a :class:`KeyRecord` whose key is required."""
+
+class _KeyLog:
+    """What :func:`recording_keys` collects: the records, and the discriminator (``kind``, ``protocol``) read in
+    each section so far, by the section's full path (``transports[2]``)."""
+
+    DISCRIMINATORS = ("kind", "protocol")
+
+    def __init__(self) -> None:
+        self.records: list[KeyRecord] = []
+        self.chosen: dict[str, str] = {}
+
+    def note(self, section_path: str, key: str, type_: str, default: object, detail: str,  # noqa: PLR0917
+             value: object) -> None:  # (one call site, Section._note)
+        when = "" if key in self.DISCRIMINATORS else self.chosen.get(section_path, "")
+        if key in self.DISCRIMINATORS and type_ == "string" and isinstance(value, str):
+            self.chosen[section_path] = f"{key} = {value}"
+        self.records.append(KeyRecord(_INDEX.sub("[]", join(section_path, key)), type_, default, detail, when))
+
+
+_KEY_LOG: ContextVar[_KeyLog | None] = ContextVar("dpbase_schema_key_log", default=None)
+_INDEX = re.compile(r"\[\d+\]")
+
+
+@contextmanager
+def recording_keys() -> Iterator[list[KeyRecord]]:
+    """Record every key the parsers read while the block runs (for the generated configuration reference).
+
+    Outside such a block nothing is recorded (one context-variable look-up per key read).
+    """
+    log = _KeyLog()
+    token = _KEY_LOG.set(log)
+    try:
+        yield log.records
+    finally:
+        _KEY_LOG.reset(token)
+
+
+def _bounds(minimum: float | None, maximum: float | None, exclusive_minimum: bool = False) -> str:
+    parts = []
+    if minimum is not None:
+        parts.append(f"{'>' if exclusive_minimum else '>='} {minimum:g}")
+    if maximum is not None:
+        parts.append(f"<= {maximum:g}")
+    return ", ".join(parts)
+
+
 def join(path: str, key: str | int) -> str:
     """Extend a key path: ``join("sensors", 1) == "sensors[1]"``, ``join("a", "b") == "a.b"``."""
     if isinstance(key, int):
@@ -64,6 +142,12 @@ class Section:
         self.path = path
         self._read: set[str] = set()
 
+    def _note(self, key: str, type_: str, default: object, detail: str = "") -> None:
+        """Tell a running :func:`recording_keys` that ``key`` was read."""
+        log = _KEY_LOG.get()
+        if log is not None:
+            log.note(self.path, key, type_, default, detail, self.data.get(key, default))
+
     @staticmethod
     def of(value: object, path: str = "") -> Section:
         """Wrap ``value`` (must be a mapping with string keys; ``None`` is an empty mapping)."""
@@ -80,10 +164,12 @@ class Section:
         self._read.add(key)
 
     def has(self, key: str) -> bool:
+        self._note(key, "value", None)
         return key in self.data
 
     def raw(self, key: str, default: object = _MISSING) -> Any:
         """The raw value of ``key`` (required when no default is given)."""
+        self._note(key, "value", default)
         self._mark(key)
         if key not in self.data:
             if default is _MISSING:
@@ -94,11 +180,14 @@ class Section:
     def number(self, key: str, default: object = _MISSING, *, minimum: float | None = None,
                maximum: float | None = None, exclusive_minimum: bool = False) -> float:
         """A finite real number, optionally bounded."""
+        self._note(key, "number", default, _bounds(minimum, maximum, exclusive_minimum))
         value = self.raw(key, default)
         return check_number(value, join(self.path, key), minimum=minimum, maximum=maximum,
                             exclusive_minimum=exclusive_minimum)
 
     def optional_number(self, key: str, **bounds: Any) -> float | None:
+        self._note(key, "number", None, _bounds(bounds.get("minimum"), bounds.get("maximum"),
+                                                bounds.get("exclusive_minimum", False)))
         value = self.raw(key, None)
         if value is None:
             return None
@@ -106,6 +195,7 @@ class Section:
 
     def integer(self, key: str, default: object = _MISSING, *, minimum: int | None = None,
                 maximum: int | None = None) -> int:
+        self._note(key, "integer", default, _bounds(minimum, maximum))
         value = self.raw(key, default)
         where = join(self.path, key)
         if isinstance(value, bool) or not isinstance(value, int):
@@ -117,6 +207,9 @@ class Section:
         return value
 
     def string(self, key: str, default: object = _MISSING, *, choices: Iterable[str] | None = None) -> str:
+        if choices is not None:
+            choices = list(choices)
+        self._note(key, "string", default, "" if choices is None else "one of " + ", ".join(choices))
         value = self.raw(key, default)
         where = join(self.path, key)
         if not isinstance(value, str) or not value:
@@ -128,17 +221,21 @@ class Section:
         return value
 
     def boolean(self, key: str, default: object = _MISSING) -> bool:
+        self._note(key, "boolean", default)
         value = self.raw(key, default)
         if not isinstance(value, bool):
             raise ConfigError(join(self.path, key), "true or false", value)
         return value
 
     def section(self, key: str, *, required: bool = False) -> Section:
+        self._note(key, "mapping", _MISSING if required else None)
         value = self.raw(key, _MISSING if required else None)
         return Section.of(value, join(self.path, key))
 
     def items(self, key: str, *, required: bool = False, min_items: int = 0) -> list[tuple[str, Any]]:
         """A list value: returns ``(path, element)`` pairs."""
+        self._note(key, "list", _MISSING if required else [],
+                   f"at least {min_items} item(s)" if min_items else "")
         value = self.raw(key, _MISSING if required else [])
         where = join(self.path, key)
         if value is None:
@@ -150,10 +247,12 @@ class Section:
         return [(join(where, i), element) for i, element in enumerate(value)]
 
     def vector(self, key: str, length: int | None = None, default: object = _MISSING) -> np.ndarray:
+        self._note(key, "vector", default, "" if length is None else f"{length} numbers")
         value = self.raw(key, default)
         return check_vector(value, join(self.path, key), length)
 
     def matrix(self, key: str, shape: tuple[int, int], default: object = _MISSING) -> np.ndarray:
+        self._note(key, "matrix", default, f"{shape[0]}x{shape[1]}")
         value = self.raw(key, default)
         return check_matrix(value, join(self.path, key), shape)
 
