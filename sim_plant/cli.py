@@ -242,9 +242,9 @@ def _scenario_path(text: str) -> Path:
     from sim_plant.scenario import builtin_scenario_path  # noqa: PLC0415 - keep --help fast
 
     path = Path(text)
-    if path.exists() or text.endswith((".yaml", ".yml")) or "/" in text:
+    if path.exists() or text.endswith((".yaml", ".yml")):
         return path
-    return builtin_scenario_path(text)
+    return builtin_scenario_path(text)  # a name, also faults/<name>; unknown: KeyError naming the known ones
 
 
 def _cmd_hil(args: argparse.Namespace) -> int:
