@@ -1,4 +1,5 @@
-"""``dpcontrol`` command line (composition layer): run, check-config, monitor, setpoint, bench, decode, replay, log.
+"""``dpcontrol`` command line (composition layer): run, check-config, monitor, console, setpoint, bench, decode,
+replay, log.
 
 Exit codes: 0 success; 1 runtime failure; 2 invalid usage or configuration, or an input file named on the
 command line that cannot be read (missing, a folder, no permission) — the message names the file, the key path
@@ -93,6 +94,12 @@ def _cmd_check_config(args: argparse.Namespace) -> int:
 
 def _cmd_monitor(args: argparse.Namespace) -> int:
     from dpcontrol.monitor import run_from_args  # noqa: PLC0415
+
+    return run_from_args(args)
+
+
+def _cmd_console(args: argparse.Namespace) -> int:
+    from dpcontrol.console import run_from_args  # noqa: PLC0415
 
     return run_from_args(args)
 
@@ -215,6 +222,12 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("monitor", help="live view of a running controller over zenoh")
     add_arguments(p)
     p.set_defaults(func=_cmd_monitor)
+
+    from dpcontrol.console import add_arguments as add_console_arguments  # noqa: PLC0415
+
+    p = sub.add_parser("console", help="the operator's console in a web browser (served from this process)")
+    add_console_arguments(p)
+    p.set_defaults(func=_cmd_console)
 
     from dpcontrol.setpoint import add_arguments as add_setpoint_arguments  # noqa: PLC0415
 
