@@ -35,6 +35,7 @@ import ipaddress
 import logging
 import math
 import signal
+import socket
 import sys
 import threading
 import time
@@ -44,7 +45,7 @@ from typing import Any
 
 import orjson
 
-from dpcontrol.arguments import add_zenoh_arguments
+from dpcontrol.arguments import add_zenoh_arguments, positive_number
 from dpcontrol.models.vessels import vessel_from_config
 from dpcontrol.setpoint import DEFAULT_TIMEOUT_S, check_request, send_request
 from interfaces.zenoh.config import LOCAL_DAEMON_CONNECT, ZenohConfig, ZenohOpenError
@@ -373,9 +374,19 @@ def run_console(vessel: str, session_config: ZenohConfig, *, http: str = DEFAULT
         log.warning("console served on %s, beyond this machine: it has no login of its own; put it behind an "
                     "authenticating proxy or reach it through an SSH tunnel (docs/console.md)%s", host,
                     "; operator actions are ENABLED" if allow_actions else "")
+    # bound here, not by uvicorn: a port in use is one clear line (uvicorn would exit from inside its loop)
+    listener = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET, socket.SOCK_STREAM)
+    try:
+        listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        listener.bind((host, port))
+    except OSError as error:
+        listener.close()
+        print(f"dpcontrol console: cannot serve on {http}: {error.strerror or error}", file=sys.stderr)
+        return 1
     try:
         node = ZenohNode(session_config, vessel)
     except ZenohOpenError as error:
+        listener.close()
         print(f"dpcontrol console: {error}", file=sys.stderr)
         return 1
     try:
@@ -385,7 +396,7 @@ def run_console(vessel: str, session_config: ZenohConfig, *, http: str = DEFAULT
                                                ws="auto"))
 
         async def serve() -> None:
-            task = asyncio.create_task(server.serve())
+            task = asyncio.create_task(server.serve(sockets=[listener]))
             while not server.started and not task.done():
                 await asyncio.sleep(0.05)
             if server.started:
@@ -411,6 +422,7 @@ def run_console(vessel: str, session_config: ZenohConfig, *, http: str = DEFAULT
         return 0 if server.started else 1
     finally:
         node.close()
+        listener.close()
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -422,7 +434,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--allow-actions", action="store_true",
                         help="serve the operator actions (mode, set-point, move, turn, thruster reset); "
                              "read-only without it")
-    parser.add_argument("--timeout", type=float, default=DEFAULT_TIMEOUT_S, metavar="SECONDS",
+    parser.add_argument("--timeout", type=positive_number, default=DEFAULT_TIMEOUT_S, metavar="SECONDS",
                         help=f"longest wait for the controller's answer to an action (default {DEFAULT_TIMEOUT_S:g})")
 
 
@@ -438,9 +450,6 @@ def run_from_args(args: argparse.Namespace) -> int:
         config = session_config_from_args(args)
     except ValueError as error:
         print(f"dpcontrol console: {error}", file=sys.stderr)
-        return 2
-    if not args.timeout > 0.0:
-        print("dpcontrol console: --timeout must be > 0", file=sys.stderr)
         return 2
     return run_console(args.vessel, config, http=args.http, allow_actions=args.allow_actions, timeout_s=args.timeout)
 

@@ -94,7 +94,8 @@ def test_feed_snapshot_trail_and_acknowledgement_over_zenoh() -> None:
         assert feed.snapshot()["acknowledged"] == [["gnss1.frozen", 4.0]]
         time.sleep(TRAIL_GAP_S)
         publish(1.5, 8.0)  # raised again (a new since): no longer acknowledged; the trail grows
-        snap = wait_for(lambda s: s["topics"]["estimate"]["message"]["pose_n"]["north_m"] == 1.5)
+        snap = wait_for(lambda s: s["topics"]["estimate"]["message"]["pose_n"]["north_m"] == 1.5
+                        and s["topics"]["status"]["message"]["alarms"][0]["since_t_s"] == 8.0)
         assert snap["acknowledged"] == []
         assert [point[1] for point in feed.trail()] == [1.0, 1.5]
         assert all(math.isfinite(point[0]) for point in feed.trail())
@@ -104,3 +105,18 @@ def test_feed_snapshot_trail_and_acknowledgement_over_zenoh() -> None:
 
 
 TRAIL_GAP_S = 0.6  # more than the trail's 0.5 s spacing
+
+
+def test_a_port_in_use_is_one_line_and_exit_1(capsys: pytest.CaptureFixture[str]) -> None:
+    import socket  # noqa: PLC0415
+
+    from dpcontrol.console import run_console  # noqa: PLC0415
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        assert run_console("v1", ZenohConfig(), http=f"127.0.0.1:{port}") == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"dpcontrol console: cannot serve on 127.0.0.1:{port}: ") and len(err.splitlines()) == 1
+    assert run_console("v1", ZenohConfig(), http="127.0.0.1:http") == 2
