@@ -294,7 +294,7 @@ def run_demo(scenario_path: Path, run_dir: Path | None = None, *, duration_s: fl
             raise DemoError(f"dpcontrol did not become ready (see {run_dir / 'dpcontrol.log'})")
         ticks = cpu_times()  # the hypervisor's share of the CPUs over the daemon's loop (host_steal)
         say(f"dpcontrol ready; running the {duration:g} s scenario (live view: dpcontrol monitor --vessel demo "
-            f"--connect {wiring['zenoh']}; in a browser: dpcontrol console --vessel demo --connect {wiring['zenoh']})")
+            f"--connect {wiring['zenoh']})")
         remaining = duration - (time.monotonic() - plant_start)
         show_live = sys.stdout.isatty() if live is None else live
         try:
