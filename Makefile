@@ -32,6 +32,7 @@ demo: $(STAMP)
 	$(BIN)/sim-plant demo
 
 test: $(STAMP)
+	sh .ci/install-test-browser
 	$(BIN)/ruff check .
 	$(BIN)/python -m pytest -q
 

@@ -1,7 +1,10 @@
-"""``dpcontrol`` command line (composition layer): run, check-config, monitor, setpoint, bench, decode, replay, log.
+"""``dpcontrol`` command line (composition layer): run, check-config, monitor, console, setpoint, bench, decode,
+replay, log.
 
-Exit codes: 0 success; 1 runtime failure; 2 invalid usage or configuration (the message names the
-file, the key path and what was expected); 130 interrupted (Ctrl-C; ``run`` stops in order on it instead).
+Exit codes: 0 success; 1 runtime failure; 2 invalid usage or configuration, or an input file named on the
+command line that cannot be read (missing, a folder, no permission) — the message names the file, the key path
+and what was expected; 130 interrupted (Ctrl-C; ``run`` stops in order on it instead). ``sim-plant`` uses
+the same codes.
 """
 
 from __future__ import annotations
@@ -24,6 +27,8 @@ from dpbase.schema import ConfigError
 from dpcontrol.arguments import positive_number
 
 EXIT_INTERRUPTED = 130  # as a shell reports a command ended by Ctrl-C (128 + SIGINT)
+# an input named on the command line that cannot be opened at all: a usage error (2), as check-config says
+UNREADABLE_INPUT = (FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError)
 
 
 def _configure_logging(verbose: bool) -> None:
@@ -93,6 +98,12 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
     return run_from_args(args)
 
 
+def _cmd_console(args: argparse.Namespace) -> int:
+    from dpcontrol.console import run_from_args  # noqa: PLC0415
+
+    return run_from_args(args)
+
+
 def _cmd_setpoint(args: argparse.Namespace) -> int:
     from dpcontrol.setpoint import run_from_args  # noqa: PLC0415
 
@@ -116,7 +127,7 @@ def _cmd_decode(args: argparse.Namespace) -> int:
         return 0
     except OSError as error:
         print(f"dpcontrol decode: {error}", file=sys.stderr)
-        return 1
+        return 2 if isinstance(error, UNREADABLE_INPUT) else 1
     if args.stats:
         print(json.dumps(stats, sort_keys=True), file=sys.stderr)
     return 0
@@ -161,9 +172,9 @@ def _cmd_replay(args: argparse.Namespace) -> int:
     except ConfigError as error:
         print(f"dpcontrol replay: invalid configuration: {error}", file=sys.stderr)
         return 2
-    except (OSError, ValueError) as error:
+    except (OSError, ValueError) as error:  # ValueError: the log is no recording, or one without inputs
         print(f"dpcontrol replay: {error}", file=sys.stderr)
-        return 1
+        return 2 if isinstance(error, (*UNREADABLE_INPUT, ValueError)) else 1
     print(json.dumps(report, indent=2))
     return 0 if report.get("identical", True) or not report.get("same_config") else 1
 
@@ -180,11 +191,11 @@ def _cmd_log_export(args: argparse.Namespace) -> int:
         paths = export_csv(args.log, args.csv)
     except (OSError, ValueError) as error:
         print(f"dpcontrol log export: {error}", file=sys.stderr)
-        return 1
+        return 2 if isinstance(error, UNREADABLE_INPUT) else 1
     if not paths:
         print(f"dpcontrol log export: {args.log}: no records read — not a dpcontrol recording (MCAP), or empty; "
               "nothing written", file=sys.stderr)
-        return 1
+        return 2  # the input is not what the command reads: as check-config on a file that is no configuration
     for path in paths:
         print(path)
     return 0
@@ -211,6 +222,12 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("monitor", help="live view of a running controller over zenoh")
     add_arguments(p)
     p.set_defaults(func=_cmd_monitor)
+
+    from dpcontrol.console import add_arguments as add_console_arguments  # noqa: PLC0415
+
+    p = sub.add_parser("console", help="the operator's console in a web browser (served from this process)")
+    add_console_arguments(p)
+    p.set_defaults(func=_cmd_console)
 
     from dpcontrol.setpoint import add_arguments as add_setpoint_arguments  # noqa: PLC0415
 

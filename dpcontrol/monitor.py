@@ -96,6 +96,9 @@ class MonitorState:
         Zenoh peers connected.
     stale_after_s : float
         Age beyond which data is shown as stale [s].
+    wall_s : float or None
+        Wall-clock time (UNIX epoch) at ``now_s`` [s]: alarm times are shown as UTC clock times; ``None``
+        shows ages only.
     """
 
     vessel: str
@@ -104,6 +107,7 @@ class MonitorState:
     alive: Mapping[str, AliveState | None] = field(default_factory=dict)
     peers: int = 0
     stale_after_s: float = 2.0
+    wall_s: float | None = None
 
     def view(self, topic: str) -> TopicView:
         return self.topics.get(topic) or TopicView()
@@ -151,6 +155,24 @@ def _heading_deg(value: Any) -> str:
     """Heading as a compass bearing in [0, 360) degrees."""
     number = _number(value)
     return _DASH if number is None else f"{math.degrees(number) % 360.0:.1f}"
+
+
+#: SI prefixes a force column may take, by magnitude (a 1:70 model's forces are newtons, a tanker's meganewtons).
+_FORCE_PREFIXES: tuple[tuple[str, float], ...] = (("", 1.0), ("k", 1e3), ("M", 1e6))
+
+
+def _force_unit(values: Sequence[Any], unit: str = "N") -> tuple[str, float, str]:
+    """``(label, scale, spec)`` for one column of forces [N] (or moments [N·m]): the largest prefix that keeps
+    the column's biggest magnitude at or above 1, and enough decimals for three significant digits there."""
+    numbers = [abs(n) for n in map(_number, values) if n is not None]
+    largest = max(numbers, default=0.0)
+    prefix, scale = _FORCE_PREFIXES[0]
+    for candidate, candidate_scale in _FORCE_PREFIXES:
+        if largest >= candidate_scale:
+            prefix, scale = candidate, candidate_scale
+    scaled = largest / scale
+    decimals = 2 if scaled < 10.0 else 1 if scaled < 100.0 else 0
+    return prefix + unit, 1.0 / scale, f".{decimals}f"
 
 
 def _text(value: Any, limit: int = 60) -> str:
@@ -205,6 +227,15 @@ def _alive_text(role: str, alive: AliveState | None) -> Text:
     return Text(f"{role} ○ not seen", style="yellow")
 
 
+def _drives_seen(status: Any) -> AliveState | None:
+    """The plant/drives' liveliness as the daemon reports it (``status.drives``), ``None`` when it does not."""
+    drives = _get(status, "drives")
+    present, seen = _get(drives, "present"), _get(drives, "seen")
+    if not isinstance(present, bool) or not isinstance(seen, bool):
+        return None
+    return AliveState(present=present, seen=seen or present, since_t_s=None, losses=0)
+
+
 def _header(state: MonitorState) -> Panel:
     status = state.message("status")
     command = state.message("command")
@@ -215,7 +246,12 @@ def _header(state: MonitorState) -> Panel:
     line.append(_text(mode) or _NO_DATA, style="bold cyan" if mode else "dim")
     for role in ROLES:
         line.append("   ")
-        line.append_text(_alive_text(role, state.alive.get(role)))
+        # the plant as the daemon sees it (what matters is whether the controller hears the drives); this
+        # session's own view only when the daemon does not say
+        daemon_view = _drives_seen(status) if role == "plant" else None
+        line.append_text(_alive_text(role, daemon_view or state.alive.get(role)))
+        if role == "plant" and daemon_view is None and state.alive.get(role) is not None:
+            line.append(" (monitor's view)", style="dim")
     line.append(f"   peers {state.peers}", style="green" if state.peers else "yellow")
     _request_line(line, status)
     return Panel(line, title="dpcontrol monitor", title_align="left")
@@ -277,13 +313,20 @@ def _motion_panel(state: MonitorState) -> Panel:
                   _deg(_get(reference, "yaw_rate_radps"), ".2f"))
     bias = _get(estimate, "bias")
     frame = _get(bias, "frame")
-    _row(table, f"bias X/Y [kN] ({frame or _DASH})",
-                  f"{_fmt(_get(bias, 'x_n'), '.1f', 1e-3)} / {_fmt(_get(bias, 'y_n'), '.1f', 1e-3)}", "")
-    _row(table, "bias N [kN·m]", _fmt(_get(bias, "n_nm"), ".1f", 1e-3), "")
+    unit, scale, spec = _force_unit([_get(bias, "x_n"), _get(bias, "y_n")])
+    _row(table, f"bias X/Y [{unit}] ({frame or _DASH})",
+                  f"{_fmt(_get(bias, 'x_n'), spec, scale)} / {_fmt(_get(bias, 'y_n'), spec, scale)}", "")
+    unit, scale, spec = _force_unit([_get(bias, "n_nm")], "N·m")
+    _row(table, f"bias N [{unit}]", _fmt(_get(bias, "n_nm"), spec, scale), "")
     wave = _get(estimate, "wave_n")
     _row(table, "WF north/east [m]", f"{_fmt(_get(wave, 'north_m'))} / {_fmt(_get(wave, 'east_m'))}", "")
     _row(table, "WF heading [deg]", _deg(_get(wave, "heading_rad"), ".2f"), "")
     return Panel(table, title=_title(state, "estimate", "Velocity / bias / waves"), title_align="left")
+
+
+#: How the daemon's sea-state classes read (Froude-scaled seed 001 Table I, see ``SeaStateTable.froude_scaled``).
+_SEA_STATE_LABEL = {"long_swell": "long swell (longer than high, for this hull)",
+                    "outside_table": "outside the table (longer than high)"}
 
 
 def _mmae_panel(state: MonitorState) -> Panel:
@@ -304,10 +347,12 @@ def _mmae_panel(state: MonitorState) -> Panel:
             style = "bold green" if i == best else "blue"
             bar = Bar(1.0, 0.0, min(max(w or 0.0, 0.0), 1.0), width=24, color=style.rsplit(maxsplit=1)[-1])
             _row(table, _fmt(omega), bar, Text(_fmt(w, ".1%", 1.0) if w is not None else _DASH, style=style))
-    omega_hat = _get(mmae, "omega_hat_rad_s")
+    omega_hat = _number(_get(mmae, "omega_hat_rad_s"))
     sea_state = _get(mmae, "sea_state")
-    summary = Text(f"ω̂ = {_fmt(omega_hat, '.3f')} rad/s   sea state: ")
-    summary.append(_text(sea_state) or _DASH, style="bold")
+    # the peak period a sea-keeping engineer reads; the class is the daemon's, drawn for this hull's length
+    period = "" if not omega_hat else f" (Tp {2.0 * math.pi / omega_hat:.1f} s)"
+    summary = Text(f"ω̂ = {_fmt(omega_hat, '.3f')} rad/s{period}   sea state: ")
+    summary.append(_SEA_STATE_LABEL.get(str(sea_state), _text(sea_state)) or _DASH, style="bold")
     return Panel(Group(table, summary), title=_title(state, "mmae", "MMAE wave filter"), title_align="left")
 
 
@@ -317,11 +362,15 @@ def _control_panel(state: MonitorState) -> Panel:
         return _no_data(state, "control", "Control")
     table = Table(box=None, pad_edge=False, expand=True)
     _col(table, "")
-    for name in ("X [kN]", "Y [kN]", "N [kN·m]"):
-        _col(table, name, justify="right")
-    for key, label in (("tau_b", "commanded τ"), ("tau_achieved_b", "achieved"), ("shortfall_b", "shortfall")):
+    forces = ("tau_b", "tau_achieved_b", "shortfall_b")
+    units = [_force_unit([_get(control, key, k) for key in forces], "N·m" if k == "n_nm" else "N")
+             for k in ("x_n", "y_n", "n_nm")]
+    for name, (unit, _, _) in zip(("X", "Y", "N"), units, strict=True):
+        _col(table, f"{name} [{unit}]", justify="right")
+    for key, label in zip(forces, ("commanded τ", "achieved", "shortfall"), strict=True):
         force = _get(control, key)
-        _row(table, label, *(_fmt(_get(force, k), ".1f", 1e-3) for k in ("x_n", "y_n", "n_nm")))
+        _row(table, label, *(_fmt(_get(force, k), spec, scale)
+                             for k, (_, scale, spec) in zip(("x_n", "y_n", "n_nm"), units, strict=True)))
     mrac = _get(control, "mrac")
     if isinstance(mrac, Mapping):
         mass, damping = _get(mrac, "mass"), _get(mrac, "damping")
@@ -370,8 +419,11 @@ def _thrusters_panel(state: MonitorState) -> Panel:
                 name = _get(item, "name")
                 if isinstance(name, str):
                     rows.setdefault(name, {})[source] = item
+    cmd_unit, cmd_scale, cmd_spec = _force_unit([_get(p.get("cmd"), "thrust_n") for p in rows.values()])
+    fb_unit, fb_scale, fb_spec = _force_unit([_get(p.get("fb"), "thrust_n") for p in rows.values()])
     table = Table(box=None, pad_edge=False, expand=True)
-    for name in ("thruster", "cmd [kN]", "cmd [deg]", "on", "fb [kN]", "fb [deg]", "ready", "available"):
+    for name in ("thruster", f"cmd [{cmd_unit}]", "cmd [deg]", "on", f"fb [{fb_unit}]", "fb [deg]", "ready",
+                 "available"):
         _col(table, name, justify="left" if name == "thruster" else "right")
     for name, parts in rows.items():
         cmd, fb, avail = parts.get("cmd"), parts.get("fb"), parts.get("avail")
@@ -379,14 +431,29 @@ def _thrusters_panel(state: MonitorState) -> Panel:
         ready = _get(fb, "ready")
         available = _get(avail, "available")
         _row(table,
-            _text(name, 20), _fmt(_get(cmd, "thrust_n"), ".1f", 1e-3), _deg(_get(cmd, "azimuth_rad")),
-            _flag(enabled), _fmt(_get(fb, "thrust_n"), ".1f", 1e-3), _deg(_get(fb, "azimuth_rad")), _flag(ready),
+            _text(name, 20), _fmt(_get(cmd, "thrust_n"), cmd_spec, cmd_scale), _deg(_get(cmd, "azimuth_rad")),
+            _flag(enabled), _fmt(_get(fb, "thrust_n"), fb_spec, fb_scale), _deg(_get(fb, "azimuth_rad")), _flag(ready),
             _flag(available, _text(_get(avail, "detail"), 24)))
     title = _title(state, "command", "Thrusters (command)")
-    fb_label, fb_style = _age(state, "feedback")
+    fb_label, fb_style = _feedback_age(state)
     title.append(f"  feedback ({fb_label})", style=fb_style)
     worst_case = _worst_case_line(_get(state.message("status"), "consequence"))
     return Panel(table if worst_case is None else Group(table, worst_case), title=title, title_align="left")
+
+
+def _feedback_age(state: MonitorState) -> tuple[str, str]:
+    """``(label, style)``: how old the thruster feedback the daemon last received is (``status.drives``), else
+    what this session itself receives (marked so)."""
+    drives = _get(state.message("status"), "drives")
+    if not isinstance(drives, Mapping):
+        label, style = _age(state, "feedback")
+        return label + " here", style
+    age = _number(_get(drives, "feedback_age_s"))
+    if age is None:
+        return "none received by the daemon", "yellow"
+    if age > state.stale_after_s:
+        return f"daemon's stale {age:.1f} s", "yellow"
+    return f"daemon's {age:.1f} s", "green"
 
 
 def _worst_case_line(check: Any) -> Text | None:
@@ -419,26 +486,57 @@ def _flag(value: Any, detail: str = "") -> Text:
     return Text(_DASH, style="dim")
 
 
+def alarm_times(state: MonitorState, since_t_s: Any) -> tuple[float | None, float | None]:
+    """``(age [s], UTC epoch [s])`` of an alarm raised at ``since_t_s`` on the daemon's clock.
+
+    The age is counted on the daemon's clock (``status.t_s − since_t_s``) plus how long ago the status arrived;
+    the clock time is this host's wall clock minus that age (``None`` without :attr:`MonitorState.wall_s`).
+    """
+    status = state.message("status")
+    view = state.view("status")
+    now, since = _number(_get(status, "t_s")), _number(since_t_s)
+    if now is None or since is None:
+        return None, None
+    age = max(0.0, now - since) + (0.0 if view.rx_t_s is None else max(0.0, state.now_s - view.rx_t_s))
+    return age, None if state.wall_s is None else state.wall_s - age
+
+
+def _age_text(age_s: float | None) -> str:
+    if age_s is None:
+        return _DASH
+    if age_s < 120.0:
+        return f"{age_s:.0f} s"
+    if age_s < 7200.0:
+        return f"{age_s / 60.0:.0f} min"
+    return f"{age_s / 3600.0:.1f} h"
+
+
 def _alarms_panel(state: MonitorState, limit: int = 10) -> Panel:
     alarms = _get(state.message("status"), "alarms")
     if not isinstance(alarms, list):
         return _no_data(state, "status", "Alarms")
     ordered = sorted((a for a in alarms if isinstance(a, Mapping)), key=lambda a: _get(a, "active") is not True)
     table = Table(box=None, pad_edge=False, expand=True)
-    for name in ("code", "severity", "since [s]", "text"):
-        _col(table, name)
+    for name in ("code", "severity", "state", "age", "since (UTC)", "text"):
+        _col(table, name, no_wrap=name != "text")
     for alarm in ordered[:limit]:
         severity = _get(alarm, "severity")
-        style = _SEVERITY_STYLE.get(str(severity), "") if _get(alarm, "active") is True else "dim"
-        _row(table, Text(_text(_get(alarm, "code"), 24), style=style), Text(_text(severity, 10), style=style),
-                      _fmt(_get(alarm, "since_t_s"), ".1f"), Text(_text(_get(alarm, "text"), 70), style=style))
+        active = _get(alarm, "active") is True
+        style = _SEVERITY_STYLE.get(str(severity), "") if active else "dim"
+        age, wall = alarm_times(state, _get(alarm, "since_t_s"))
+        clock = _DASH if wall is None else time.strftime("%H:%M:%S", time.gmtime(wall))
+        # the full code (the schema bounds it at 64 characters): codes are what an operator looks up
+        _row(table, Text(_text(_get(alarm, "code"), 64), style=style), Text(_text(severity, 10), style=style),
+             Text("active" if active else "cleared", style=style), _age_text(age), clock,
+             Text(_text(_get(alarm, "text"), 120), style=style))
     active = sum(1 for a in ordered if _get(a, "active") is True)
     if not ordered:
-        _row(table, Text("none", style="green"), "", "", "")
+        _row(table, Text("none", style="green"), "", "", "", "", "")
     elif len(ordered) > limit:
-        _row(table, "…", "", "", f"{len(ordered) - limit} more")
+        _row(table, "…", "", "", "", "", f"{len(ordered) - limit} more")
     title = Text("Alarms", style="bold")
-    title.append(f" ({active} active)", style="red" if active else "green")
+    title.append(f" ({active} active", style="red" if active else "green")
+    title.append(f", {len(ordered) - active} cleared)", style="dim")
     return Panel(table, title=title, title_align="left")
 
 
@@ -522,7 +620,7 @@ class _Feed:
                 last_rejection=None if last is None else f"{last.reason}: {last.detail}")
         return MonitorState(vessel=self.vessel, now_s=self.clock(), topics=topics,
                             alive={role: w.state for role, w in self.watchers.items()},
-                            peers=len(self.node.peers()), stale_after_s=self.stale_after_s)
+                            peers=len(self.node.peers()), stale_after_s=self.stale_after_s, wall_s=time.time())
 
     def complete(self) -> bool:
         return all(s.sink.count > 0 for s in self.subscribers.values())

@@ -102,6 +102,18 @@ def _rejected_alarm(status: Mapping[str, Any] | None) -> str | None:
     return None
 
 
+def check_request(fields: Mapping[str, Any]) -> str | None:
+    """Why the daemon would refuse a request with these ``dpcontrol.setpoint/1`` fields (its own parser,
+    :func:`interfaces.zenoh.schemas.parse_setpoint`, run here), or ``None`` when it would take it. Every
+    operator tool (``dpcontrol setpoint``, ``dpcontrol console``) checks with it before sending."""
+    try:
+        payload = setpoint_payload(t_s=time.time(), seq=0, **fields)
+    except (TypeError, ValueError) as error:  # a field the schema does not have, a value it cannot encode
+        return f"invalid request: {error}"
+    checked = parse_setpoint(payload)
+    return f"invalid request ({checked.reason}): {checked.detail}" if isinstance(checked, Rejected) else None
+
+
 def send_request(node: ZenohNode, fields: Mapping[str, Any], *, timeout_s: float,
                  clock: Callable[[], float] = time.monotonic, seq: int | None = None) -> Answer:
     """Send one operator request to the vessel's controller and wait for its answer.
@@ -187,10 +199,9 @@ def run_setpoint(vessel: str, fields: Mapping[str, Any], *, connect: Sequence[st
     except ValueError as error:
         err.write(f"dpcontrol setpoint: {error}\n")
         return EXIT_USAGE
-    # The daemon's parser, here: what it would refuse is refused before anything is sent.
-    checked = parse_setpoint(setpoint_payload(t_s=time.time(), seq=0, **fields))
-    if isinstance(checked, Rejected):
-        err.write(f"dpcontrol setpoint: invalid request ({checked.reason}): {checked.detail}; nothing sent\n")
+    invalid = check_request(fields)
+    if invalid is not None:
+        err.write(f"dpcontrol setpoint: {invalid}; nothing sent\n")
         return EXIT_USAGE
     try:
         node = ZenohNode(config, vessel)

@@ -8,7 +8,8 @@
 * ``sim-plant bench [--json]``: simulation speed (seed 003 12 h, seed 000).
 
 Exit status: 0 after a clean end (``hil``: duration reached, SIGTERM, SIGINT or SIGHUP), 1 when the
-emulator fails at run time (a link that cannot be opened, an error in the loop), 2 for a usage or
+emulator fails at run time (a link that cannot be opened, an error in the loop; ``hil``: no controller
+seen during the whole run), 2 for a usage or
 configuration error (the message names the file and key), 130 when ``run``, ``demo`` or ``bench`` were
 interrupted (Ctrl-C; ``run`` and ``demo`` still write what ran).
 """
@@ -204,13 +205,14 @@ def _add_hil(commands: Any) -> None:
                      "links.json and hil_summary.json here")
     sub.add_argument("--speed", type=positive_number, default=1.0, help="plant seconds per wall second (default 1)")
     sub.add_argument("--engage", action="store_true",
-                     help="request DP (auto_position) once the controller is alive and publishing status")
+                     help="act as the operator: request DP (auto_position) once the controller is alive and "
+                          "publishing status, and send the scenario's setpoints (without it, none are sent)")
     sub.add_argument("--duration", type=positive_number, metavar="S",
                      help="plant time to run [s] (default: the scenario's)")
     sub.add_argument("--zenoh-listen", action="append", metavar="ENDPOINT",
-                     help="listen here (repeatable); default: derived from the controller configuration")
+                     help="also listen here (repeatable), besides what the controller configuration implies")
     sub.add_argument("--zenoh-connect", action="append", metavar="ENDPOINT",
-                     help="connect here (repeatable); default: the controller's zenoh.listen endpoints")
+                     help="also connect here (repeatable), besides the controller's zenoh.listen endpoints")
     sub.add_argument("--no-can-server", action="store_true",
                      help="do not start the python-can-remote server of 'remote' buses (someone else runs it)")
     sub.set_defaults(handler=_cmd_hil)
@@ -241,9 +243,9 @@ def _scenario_path(text: str) -> Path:
     from sim_plant.scenario import builtin_scenario_path  # noqa: PLC0415 - keep --help fast
 
     path = Path(text)
-    if path.exists() or text.endswith((".yaml", ".yml")) or "/" in text:
+    if path.exists() or text.endswith((".yaml", ".yml")):
         return path
-    return builtin_scenario_path(text)
+    return builtin_scenario_path(text)  # a name, also faults/<name>; unknown: KeyError naming the known ones
 
 
 def _cmd_hil(args: argparse.Namespace) -> int:
@@ -294,6 +296,12 @@ def _cmd_hil(args: argparse.Namespace) -> int:
         print(f"sim-plant hil: stopped ({summary['stopped_by']}) at plant time {summary['duration_s']:.2f} s; "
               f"{loop['wakeups']} wake-ups, {loop['missed_deadlines']} missed deadlines, "
               f"{summary['counts']['commands_applied']} commands applied", flush=True)
+        if not emulator.controller_seen:  # a bench that never met its controller tested nothing
+            print(f"sim-plant hil: no controller for vessel {wiring.vessel_id!r} was seen during the whole run "
+                  f"(liveliness dp/{wiring.vessel_id}/alive/controller; listening on {list(emulator.zenoh_listen)}, "
+                  f"connecting to {list(emulator.zenoh_connect)}): is `dpcontrol run --config "
+                  f"{args.controller_config}` running, and do the endpoints meet?", file=sys.stderr)
+            return EXIT_FAILURE
         return EXIT_OK
     finally:
         emulator.close()

@@ -446,6 +446,11 @@ class HilEmulator:
         self._stop_requested = True
 
     @property
+    def controller_seen(self) -> bool:
+        """Whether the controller's liveliness token was seen at any time since the zenoh session opened."""
+        return self.zenoh is not None and self.zenoh.controller.state.seen
+
+    @property
     def start_monotonic(self) -> float | None:
         """``time.monotonic()`` at plant time 0 (None before :meth:`run` starts the clock)."""
         return self.clock.start_monotonic

@@ -376,24 +376,31 @@ def zenoh_endpoints(wiring: ZenohWiring, listen: tuple[str, ...] | None = None,
                     connect: tuple[str, ...] | None = None) -> tuple[tuple[str, ...], tuple[str, ...]]:
     """The emulator's zenoh ``(listen, connect)`` endpoints.
 
-    Explicit ``listen``/``connect`` (command line) win. Otherwise: a daemon in ``client`` mode
-    reaches the vessel network through the router(s) it connects to, and so does the emulator; a
-    peer daemon that listens is connected to; a peer daemon that only *connects* is reached by
-    listening on its ``connect`` endpoints (the emulator is then what they point at). Either way
-    the two sessions meet without multicast scouting.
+    Derived from the controller configuration: a daemon in ``client`` mode reaches the vessel network
+    through the router(s) it connects to, and so does the emulator; a peer daemon that listens is
+    connected to; a peer daemon that only *connects* is reached by listening on its ``connect``
+    endpoints (the emulator is then what they point at). Either way the two sessions meet without
+    multicast scouting. Explicit ``listen``/``connect`` (command line) are added to those (a monitor's
+    endpoint beside the daemon's, say): giving one never loses the way to the daemon.
 
     Raises
     ------
     ValueError
         No endpoint at all: the daemon neither listens nor connects, and none was given.
     """
-    if listen is not None or connect is not None:
-        return tuple(listen or ()), tuple(connect or ())
+    derived: tuple[tuple[str, ...], tuple[str, ...]] = ((), ())
     if wiring.mode == "client" and wiring.connect:
-        return (), wiring.connect
-    if wiring.listen:
-        return (), wiring.listen
-    if wiring.connect:
-        return wiring.connect, ()
-    raise ValueError("the controller configuration has no zenoh listen or connect endpoint: give the "
-                     "emulator's own with --zenoh-listen/--zenoh-connect")
+        derived = ((), wiring.connect)
+    elif wiring.listen:
+        derived = ((), wiring.listen)
+    elif wiring.connect:
+        derived = (wiring.connect, ())
+    added_listen = tuple(e for e in listen or () if e not in derived[0])
+    added_connect = tuple(e for e in connect or () if e not in derived[1])
+    endpoints = (tuple(dict.fromkeys(derived[0] + added_listen)), tuple(dict.fromkeys(derived[1] + added_connect)))
+    # (an endpoint both listened on and connected to would connect the session to itself)
+    endpoints = (endpoints[0], tuple(e for e in endpoints[1] if e not in endpoints[0]))
+    if not endpoints[0] and not endpoints[1]:
+        raise ValueError("the controller configuration has no zenoh listen or connect endpoint: give the "
+                         "emulator's own with --zenoh-listen/--zenoh-connect")
+    return endpoints

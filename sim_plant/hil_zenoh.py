@@ -13,11 +13,11 @@ from the controller configuration, multicast scouting off) with
 * a ``dp/<vessel>/status`` subscriber and the ``dp/<vessel>/setpoint`` publisher, used by
   :class:`Operator`.
 
-:class:`Operator` is a thread that plays the operator station: it publishes the scenario's
-setpoints at their (plant) times, sends the setpoint in force again whenever the controller's
-liveliness appears (a daemon started late, or restarted, still gets its target), and with
-``engage`` asks for DP (``auto_position``; ``auto_heading`` for a heading-only scenario) once the
-controller is alive and has published a status, repeating the request until the status shows that
+:class:`Operator` is a thread that plays the operator station when asked to (``engage``; otherwise it
+sends nothing): it publishes the scenario's setpoints at their (plant) times, sends the setpoint in
+force again whenever the controller's liveliness appears (a daemon started late, or restarted, still
+gets its target), and asks for DP (``auto_position``; ``auto_heading`` for a heading-only scenario)
+once the controller is alive and has published a status, repeating the request until the status shows that
 mode or a timeout passes. It runs beside the real-time loop so that a blocking setpoint publisher
 (setpoints are never dropped, see :mod:`interfaces.zenoh.node`) cannot delay a sensor sample.
 """
@@ -249,7 +249,10 @@ class Operator:
             log.exception("HIL operator failed")
 
     def _loop(self) -> None:
-        next_index = 0
+        # The scenario's setpoints are operator requests: sent only when the operator role was asked for
+        # (``engage``), never by a plant merely standing in for the drives (a restarted plant would otherwise
+        # move the vessel's set-point by itself).
+        next_index = 0 if self._engage else len(self._setpoints)
         current: Setpoint | None = None
         controller_seen = self._zenoh.controller.present
         while not self._stop.is_set():

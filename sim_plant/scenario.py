@@ -258,8 +258,14 @@ def builtin_scenario_names() -> list[str]:
     return sorted(p.name[: -len(".yaml")] for p in folder.iterdir() if p.name.endswith(".yaml"))
 
 
+def builtin_fault_scenario_names() -> list[str]:
+    """Names of the fault scenarios shipped in ``sim_plant/scenarios/faults``, as ``faults/<name>``."""
+    folder = resources.files("sim_plant") / "scenarios" / "faults"
+    return sorted(f"faults/{p.name[: -len('.yaml')]}" for p in folder.iterdir() if p.name.endswith(".yaml"))
+
+
 def builtin_scenario_path(name: str) -> Path:
-    """Path of a shipped scenario (``demo``, ``cs2-seed000`` ...).
+    """Path of a shipped scenario (``demo``, ``cs2-seed000`` ..., or a fault scenario ``faults/01-gnss-freeze``).
 
     Raises
     ------
@@ -267,8 +273,10 @@ def builtin_scenario_path(name: str) -> Path:
         Unknown name (the message lists the known ones).
     """
     names = builtin_scenario_names()
-    if name not in names:
-        raise KeyError(f"unknown built-in scenario {name!r} (known: {', '.join(names)})")
+    faults = builtin_fault_scenario_names()
+    if name not in names and name not in faults:
+        raise KeyError(f"unknown built-in scenario {name!r} (known: {', '.join(names)}; fault scenarios: "
+                       f"{', '.join(faults)}), and no file of that name")
     return Path(str(resources.files("sim_plant") / "scenarios" / f"{name}.yaml"))
 
 

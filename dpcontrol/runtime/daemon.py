@@ -79,11 +79,12 @@ RUNTIME_TOPICS = (
               {"state": {"type": "object"}}),
 )
 def status_payload(controller: DpController, alarms: AlarmRegistry, t_s: float, seq: int,
-                   cycle: schemas.CycleTiming | None = None) -> bytes:
+                   cycle: schemas.CycleTiming | None = None, *, drives: schemas.DrivesSeen | None = None) -> bytes:
     """The ``dp/<vessel>/status`` payload: mode, per-sensor health, alarms (active and recently cleared),
     thruster availability, cycle timing, the outcome of the last operator request (and of every one taken in
     the last second: several in one cycle, from two consoles, each get their answer) and the last worst-case
-    failure check (in DP, when failure groups are configured). The lockstep
+    failure check (in DP, when failure groups are configured), and the drives as the daemon sees them
+    (``drives``: a monitor or console shows the daemon's view, not its own session's). The lockstep
     simulation builds the same payload."""
     # texts are bounded by the status schema (256 characters)
     sensors = [schemas.SensorHealth(s["name"], s["kind"], s["state"], s["age_s"], s["weight"], s["detail"][:256])
@@ -98,7 +99,8 @@ def status_payload(controller: DpController, alarms: AlarmRegistry, t_s: float, 
         tuple(schemas.FailureGroupOutcome(o.group, o.holds, o.utilisation, o.busiest) for o in report.outcomes))
     return schemas.status_payload(t_s=t_s, seq=seq, mode=controller.mode.value, sensors=sensors,
                                   alarms=listed, cycle=cycle, thrusters=thrusters, request=controller.last_request,
-                                  requests=controller.requests_since(t_s - RECENT_REQUESTS_S), consequence=consequence)
+                                  requests=controller.requests_since(t_s - RECENT_REQUESTS_S), consequence=consequence,
+                                  drives=drives)
 
 
 def consequence_record(report: ConsequenceReport) -> dict[str, Any]:
@@ -512,6 +514,8 @@ class Daemon:
             self._resume()
         self.node = ZenohNode(cfg.zenoh, cfg.vessel_id, clock=self.clock)
         node = self.node
+        # sea-state classes for this hull (seed 001 Table I, Froude-scaled from its 100 m supply vessel)
+        self._sea_states = schemas.SeaStateTable.froude_scaled(cfg.vessel.length_m)
         # One controller per vessel: two would command the same thrusters, each fighting the other's
         # forces. Refuse to start while another holds the controller token (a second `dpcontrol run` by
         # hand beside the service, a standby computer started in error); a controller that joins later
@@ -785,7 +789,8 @@ class Daemon:
             if estimate.weights is not None:
                 pub["mmae"].put(schemas.mmae_payload(t_s=t_s, seq=seq, omegas_rad_s=estimate.omegas_rad_s,
                                                      weights=estimate.weights,
-                                                     omega_hat_rad_s=estimate.omega_hat_rad_s))
+                                                     omega_hat_rad_s=estimate.omega_hat_rad_s,
+                                                     sea_states=self._sea_states))
         mrac = out.mrac
         reference = out.reference
         pub["control"].put(schemas.control_payload(
@@ -806,7 +811,11 @@ class Daemon:
         durations = self._cycle_summary.get("cycle_duration_us", {})
         cycle = schemas.CycleTiming(self.config.sample_time_s, durations.get("median"), durations.get("p99"),
                                     self.stats.missed_deadlines, self._host_steal_percent)
-        return status_payload(self.controller, self.alarms, t_s, seq, cycle)
+        drives = self._drives.state
+        latest = self._feedback_slot.latest()
+        seen = schemas.DrivesSeen(drives.present, drives.seen,
+                                  None if latest is None else max(0.0, self.clock() - latest.rx_t_s))
+        return status_payload(self.controller, self.alarms, t_s, seq, cycle, drives=seen)
 
     def _record(self, t_s: float, out: StepOutput, seq: int, events: list[AlarmEvent]) -> None:
         recorder = self.recorder

@@ -74,6 +74,8 @@ Schemas (version 1; ``?`` = may be ``null``)
     request?: {seq, t_s, outcome (applied|refused), detail}   the last operator request taken
     requests?: [{seq, t_s, outcome, detail}]   every request taken in the last second, oldest first (≤ 16)
     consequence?: {t_s, demand_b: {x_n, y_n, n_nm}, groups: [{name, holds, utilisation?, busiest?}]}   worst case
+    drives?: {present, seen, feedback_age_s?}   the plant/drives as the daemon sees them: their liveliness
+                                                 token, and the age of the last thruster feedback it received
 
 ``dpcontrol.setpoint/1`` (operator → daemon, ``dp/<vessel>/setpoint``) — see :func:`parse_setpoint`;
 here ``?`` means the field may be left out (or be ``null``: not given)::
@@ -506,7 +508,8 @@ STATUS = Schema("dpcontrol.status", 1, Record({
                                                    "utilisation": Number(0.0, 1e6, nullable=True),
                                                    "busiest": _NAME}, optional=("busiest",)),
                                            unique="name", max_len=64)}),
-}, optional=("request", "requests", "consequence")))
+    "drives": Record({"present": Flag(), "seen": Flag(), "feedback_age_s": Number(0.0, _MAX_TIME_S, nullable=True)}),
+}, optional=("request", "requests", "consequence", "drives")))
 
 SETPOINT = Schema("dpcontrol.setpoint", 1, Record({
     "mode": Text(choices=MODES, nullable=True),
@@ -1031,6 +1034,21 @@ class SeaStateTable:
         if len(set(names)) != len(names):
             raise ValueError(f"sea-state class names must be unique, got {names}")
 
+    @classmethod
+    def froude_scaled(cls, length_m: float, reference_length_m: float = 100.0) -> SeaStateTable:
+        """Seed 001 Table I carried to a vessel of length ``length_m`` [m] by Froude scaling.
+
+        The table was drawn for "a typical 100 m DP supply vessel" (seed 001, Sec. IV); wave frequencies scale
+        as ``sqrt(reference_length_m / length_m)`` between geometrically similar hulls, so a 1:70 model sees a
+        sea "calm" above ``0.79 · sqrt(100 / 1.255) ≈ 7.1 rad/s``. Below the last band the sea is longer than
+        the table's highest, for this hull: ``long_swell``.
+        """
+        if not (math.isfinite(length_m) and length_m > 0.0 and math.isfinite(reference_length_m)
+                and reference_length_m > 0.0):
+            raise ValueError(f"vessel length must be positive, got {length_m} (reference {reference_length_m})")
+        factor = math.sqrt(reference_length_m / length_m)
+        return cls(bands=tuple((name, lower * factor) for name, lower in cls().bands), below="long_swell")
+
     def classify(self, omega_rad_s: float | None) -> str | None:
         """Class of peak frequency ``omega_rad_s`` [rad/s]; ``None`` when unknown (None/NaN)."""
         if omega_rad_s is None or not math.isfinite(omega_rad_s):
@@ -1183,15 +1201,31 @@ class ThrusterAvailability:
     detail: str = ""
 
 
+@dataclass(frozen=True)
+class DrivesSeen:
+    """The thruster drives (or plant) as the daemon sees them: liveliness token ``present`` now, ever
+    ``seen``, and ``feedback_age_s`` [s], the age of the last thruster feedback received (``None``: none yet)."""
+
+    present: bool
+    seen: bool
+    feedback_age_s: float | None
+
+
 def status_payload(*, t_s: float, seq: int, mode: str, sensors: Sequence[SensorHealth] = (),
                    alarms: Sequence[Alarm] = (), cycle: CycleTiming | None = None,
                    thrusters: Sequence[ThrusterAvailability] = (), request: RequestOutcome | None = None,
-                   consequence: WorstCaseCheck | None = None, requests: Sequence[RequestOutcome] = ()) -> bytes:
+                   consequence: WorstCaseCheck | None = None, requests: Sequence[RequestOutcome] = (),
+                   drives: DrivesSeen | None = None) -> bytes:
     """Encode the daemon status: mode, per-sensor health, alarms, cycle timing, thruster availability, the
     outcome of the last operator request (``request``, absent before the first) and of each one taken lately
-    (``requests``, oldest first, the last 16 at most; absent when none), and the last worst-case failure check
-    (``consequence``, absent when none ran: not configured, or not in DP)."""
+    (``requests``, oldest first, the last 16 at most; absent when none), the last worst-case failure check
+    (``consequence``, absent when none ran: not configured, or not in DP), and the drives as the daemon sees
+    them (``drives``, absent when not given)."""
     extra: dict[str, Any] = {} if request is None else {"request": _request_outcome(request)}
+    if drives is not None:
+        extra["drives"] = {"present": bool(drives.present), "seen": bool(drives.seen),
+                           "feedback_age_s": None if drives.feedback_age_s is None
+                           else max(0.0, min(float(drives.feedback_age_s), _MAX_TIME_S))}
     if requests:
         extra["requests"] = [_request_outcome(outcome) for outcome in requests[-16:]]
     if consequence is not None:

@@ -38,6 +38,7 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -49,6 +50,7 @@ from dpbase.yamlfile import load_yaml, read_yaml_file
 from dpcontrol.platform_info import cpu_times, describe_steal, host_steal
 from dpcontrol.runtime.config import CONTROLLER_SECTIONS
 from interfaces.zenoh.loopback import free_tcp_port, free_udp_port
+from sim_plant.bench.report import PlotEvent, mark_events, plot_events
 
 DEMO_SENSORS = [
     {"name": "gnss1", "kind": "gnss", "protocol": "nmea0183", "rate_hz": 10},
@@ -455,11 +457,14 @@ def write_report(run_dir: Path, wiring: dict[str, Any], *, daemon_code: int | No
     modes: list[dict[str, Any]] = []
     alarms: list[dict[str, Any]] = []
     checks: dict[str, dict[str, Any]] = {}  # the worst-case failure checks, per failure group
+    cycle_t: dict[int, float] = {}  # daemon time of each command (by its seq): the daemon clock → plant time
     records_dir = run_dir / "records"
     if records_dir.exists():
-        for record in read_records(records_dir, ("estimate", "mmae", "mode", "alarm", "consequence")):
+        for record in read_records(records_dir, ("estimate", "mmae", "mode", "alarm", "consequence", "command")):
             p = record.payload
-            if record.topic == "consequence":
+            if record.topic == "command":
+                cycle_t[int(p["cycle"])] = float(p["t_s"])
+            elif record.topic == "consequence":
                 for group in p.get("groups") or []:
                     entry = checks.setdefault(str(group.get("name")), {"checks": 0, "held": 0, "utilisation_max": None})
                     entry["checks"] += 1
@@ -515,12 +520,40 @@ def write_report(run_dir: Path, wiring: dict[str, Any], *, daemon_code: int | No
             summary["zero_thrust_commanded_last"] = all(
                 abs(float(r[header.index("thrust_n")])) == 0.0 for r in last)
     (report / "summary.json").write_text(json.dumps(summary, indent=2, default=str) + "\n", encoding="utf-8")
-    _plots(report, truth, scenario, estimates, weights)
+    offset = _daemon_to_plant_s(commands, cycle_t)
+    events = _demo_events(scenario, commands)
+    _plots(report, truth, scenario, estimates, weights, events=events, daemon_to_plant_s=offset)
     return report
 
 
+def _daemon_to_plant_s(commands: dict[str, Any], cycle_t: dict[int, float]) -> float | None:
+    """Plant time minus daemon time [s]: the median, over the commands both recorded (the daemon by its cycle
+    number, the plant by the command's seq), of the plant's receive time minus the daemon's cycle time (the
+    commands' transit, well under a cycle, is in it); ``None`` when none matched."""
+    if not commands or not cycle_t:
+        return None
+    differences = [t - cycle_t[int(seq)] for t, seq in zip(commands["t_s"], commands["seq"], strict=True)
+                   if math.isfinite(seq) and int(seq) in cycle_t]
+    return float(np.median(differences)) if differences else None
+
+
+def _demo_events(scenario: dict[str, Any], commands: dict[str, Any]) -> list[PlotEvent]:
+    """Set-point and sea-state changes of the scenario and the DP engagements the plant saw (the mode of the
+    commands it received), all in plant time."""
+    modes: list[tuple[float, str]] = []
+    if commands:
+        header, rows = commands["_header"], commands["_text"]
+        t_col, mode_col = header.index("t_s"), header.index("mode")
+        modes = [(float(row[t_col]), row[mode_col]) for row in rows if len(row) > mode_col]
+    return plot_events([float(p["t_s"]) for p in scenario.get("setpoints") or []],
+                       [float(s.get("t_s", 0.0)) for s in scenario.get("sea_states") or []], modes)
+
+
 def _plots(report: Path, truth: dict[str, np.ndarray], scenario: dict[str, Any],
-           estimates: list[tuple[float, list[float]]], weights: list[tuple[float, list[float]]]) -> None:
+           estimates: list[tuple[float, list[float]]], weights: list[tuple[float, list[float]]],
+           *, events: Sequence[PlotEvent] = (), daemon_to_plant_s: float | None = None) -> None:
+    """pose.png (the plant's truth, the daemon's estimate and the set-point) and weights.png, on plant time,
+    every event marked (:func:`sim_plant.bench.report.mark_events`)."""
     import matplotlib  # noqa: PLC0415
 
     matplotlib.use("Agg")
@@ -530,21 +563,35 @@ def _plots(report: Path, truth: dict[str, np.ndarray], scenario: dict[str, Any],
         return
     fig, axes = plt.subplots(3, 1, figsize=(11, 8), sharex=True)
     t = truth["t_s"]
+    setpoint = {key: np.full(t.shape, np.nan) for key in ("north_m", "east_m", "heading_rad")}
+    for point in sorted(scenario.get("setpoints") or [], key=lambda p: p["t_s"]):
+        after = t >= float(point["t_s"])
+        heading = point.get("heading_deg")
+        for key, value in (("north_m", point.get("north_m")), ("east_m", point.get("east_m")),
+                           ("heading_rad", None if heading is None else math.radians(heading))):
+            setpoint[key][after] = np.nan if value is None else value
     for ax, (key, total, label, scale) in zip(axes, (("north_m", "north_total_m", "north [m]", 1.0),
                                                       ("east_m", "east_total_m", "east [m]", 1.0),
                                                       ("heading_rad", "heading_total_rad", "heading [deg]",
                                                        180 / math.pi)), strict=True):
         ax.plot(t, truth[total] * scale, lw=0.6, alpha=0.6, label="true total (plant)")
         ax.plot(t, truth[key] * scale, lw=1.4, label="true LF (plant)")
+        if estimates and daemon_to_plant_s is not None:
+            te = np.array([e[0] for e in estimates]) + daemon_to_plant_s
+            index = ("north_m", "east_m", "heading_rad").index(key)
+            values = np.array([e[1][index] for e in estimates])
+            if key == "heading_rad":  # (the truth is wrapped to (-pi, pi])
+                values = np.angle(np.exp(1j * values))
+            ax.plot(te, values * scale, lw=1.0, ls="--", label="LF estimate (dpcontrol)")
+        ax.step(t, setpoint[key] * scale, where="post", color="tab:red", lw=1.0, label="set-point")
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
-    for sp in scenario.get("setpoints") or []:
-        for ax in axes:
-            ax.axvline(sp["t_s"], color="k", ls=":", lw=0.8)
-    axes[0].legend(fontsize=8)
-    axes[0].set_title("sim-plant demo: the vessel as the plant saw it (dotted: setpoint changes)")
+    axes[0].legend(fontsize=8, ncol=4)
+    axes[0].set_title("sim-plant demo: the vessel as the plant saw it")
     axes[-1].set_xlabel("plant time [s]")
-    fig.tight_layout()
+    span = (float(t[0]), float(t[-1]))
+    mark_events(fig, events, span)
+    fig.tight_layout(rect=(0.0, 0.03, 1.0, 1.0))
     fig.savefig(report / "pose.png", dpi=110)
     plt.close(fig)
     if weights:
@@ -553,13 +600,17 @@ def _plots(report: Path, truth: dict[str, np.ndarray], scenario: dict[str, Any],
         values = np.array([w[1] for w in weights])
         omegas = (scenario.get("controller") or {}).get("estimator", {}).get("omegas_rad_s") or \
             list(range(values.shape[1]))
+        # on plant time, where the scenario's events are; else on the daemon's, unmarked (no command matched)
+        shift = -tw[0] if daemon_to_plant_s is None else daemon_to_plant_s
         for i in range(values.shape[1]):
-            ax.plot(tw - tw[0], values[:, i], label=f"{omegas[i]} rad/s" if i < len(omegas) else str(i))
+            ax.plot(tw + shift, values[:, i], label=f"{omegas[i]} rad/s" if i < len(omegas) else str(i))
         ax.set_ylabel("MMAE weight")
-        ax.set_xlabel("daemon time since the first estimate [s]")
+        ax.set_xlabel("daemon time since the first estimate [s]" if daemon_to_plant_s is None else "plant time [s]")
         ax.legend(fontsize=8, ncol=4)
         ax.grid(alpha=0.3)
         ax.set_title("MMAE weights as published by dpcontrol")
-        fig.tight_layout()
+        if daemon_to_plant_s is not None:
+            mark_events(fig, events, (float(tw[0] + shift), float(tw[-1] + shift)))
+        fig.tight_layout(rect=(0.0, 0.03, 1.0, 1.0))
         fig.savefig(report / "weights.png", dpi=110)
         plt.close(fig)

@@ -287,6 +287,65 @@ def write_summary(result: RunResult, path: Path) -> dict[str, Any]:
     return summary
 
 
+@dataclass(frozen=True)
+class PlotEvent:
+    """A moment every time plot marks: ``kind`` is ``setpoint`` (a set-point change), ``dp_on`` / ``dp_off``
+    (DP engaged / left: a mode change into or out of ``auto_position`` / ``auto_heading``) or ``sea`` (a new sea
+    state begins, its cross-fade starts)."""
+
+    t_s: float
+    kind: str
+
+
+EVENT_STYLE: dict[str, dict[str, Any]] = {
+    "setpoint": {"color": "k", "ls": ":", "lw": 0.9},
+    "dp_on": {"color": "tab:green", "ls": "-", "lw": 1.3},
+    "dp_off": {"color": "tab:brown", "ls": "-", "lw": 1.3},
+    "sea": {"color": "tab:purple", "ls": "-.", "lw": 1.1},
+}
+EVENT_LABEL = {"setpoint": "set-point change", "dp_on": "DP engaged", "dp_off": "DP left", "sea": "sea-state change"}
+DP_MODES = ("auto_position", "auto_heading")
+
+
+def plot_events(setpoint_times: Sequence[float], sea_state_times: Sequence[float],
+                modes: Sequence[tuple[float, str]]) -> list[PlotEvent]:
+    """The events to mark, in time order: set-point changes, sea-state changes (the first sea state, in force
+    from the start, is no change) and DP engagement from ``modes``, ``(t_s, mode)`` of each mode in force
+    from ``t_s`` on (a mode repeated is no change)."""
+    events = [PlotEvent(float(t), "setpoint") for t in setpoint_times]
+    events += [PlotEvent(float(t), "sea") for t in sorted(sea_state_times)[1:]]
+    in_dp = False
+    for t, mode in modes:
+        now_dp = mode in DP_MODES
+        if now_dp != in_dp:
+            events.append(PlotEvent(float(t), "dp_on" if now_dp else "dp_off"))
+        in_dp = now_dp
+    return sorted(events, key=lambda e: e.t_s)
+
+
+def run_events(result: RunResult) -> list[PlotEvent]:
+    """:func:`plot_events` of a lockstep run: the scenario's set-points and sea states, its mode changes."""
+    scenario = result.scenario
+    initial = result.config.initial_mode
+    modes = [(0.0, initial)] + [(t, to) for t, _from, to, _why in result.mode_changes]
+    return plot_events([p.t_s for p in scenario.setpoints], [s.t_s for s in scenario.sea_states], modes)
+
+
+def mark_events(fig: Any, events: Sequence[PlotEvent], t_range: tuple[float, float] | None = None) -> None:
+    """Draw each event as a vertical line on every axes of ``fig`` (time on x) and a figure legend of the kinds
+    drawn; events outside ``t_range`` (when given) are left out."""
+    shown = [e for e in events if t_range is None or t_range[0] <= e.t_s <= t_range[1]]
+    for ax in fig.axes:
+        for event in shown:
+            ax.axvline(event.t_s, **EVENT_STYLE[event.kind])
+    kinds = [k for k in EVENT_STYLE if any(e.kind == k for e in shown)]
+    if kinds:
+        from matplotlib.lines import Line2D  # noqa: PLC0415
+
+        fig.legend([Line2D([], [], **EVENT_STYLE[k]) for k in kinds], [EVENT_LABEL[k] for k in kinds],
+                   loc="lower right", ncol=len(kinds), fontsize=8, frameon=False)
+
+
 def write_plots(result: RunResult, out_dir: Path) -> list[Path]:
     """PNG plots an engineer expects (see the module docstring). Returns the written paths."""
     import matplotlib  # noqa: PLC0415  (heavy; only when plots are asked for)
@@ -305,6 +364,15 @@ def write_plots(result: RunResult, out_dir: Path) -> list[Path]:
     t = col("t_s")
     paths: list[Path] = []
     title = f"{result.scenario.name} — {result.config.estimator.kind} + {result.config.control.kind}"
+    events = run_events(result)
+    span = (float(t[0]), float(t[-1])) if t.size else None
+
+    def save(fig: Any, name: str) -> Path:
+        mark_events(fig, events, span)
+        return _save(fig, out_dir / name)
+
+    # the scenario's set-point as a step (what the operator asked for; the reference is the way there)
+    setpoint = _setpoint_steps(result.scenario.setpoints, t)
 
     fig, axes = plt.subplots(3, 1, figsize=(11, 9), sharex=True)
     for ax, (truth, total, meas, est, ref, label, scale) in zip(axes, (
@@ -317,12 +385,13 @@ def write_plots(result: RunResult, out_dir: Path) -> list[Path]:
         ax.plot(t, col(truth) * scale, color="tab:blue", lw=1.4, label="true LF")
         ax.plot(t, col(est) * scale, color="tab:orange", lw=1.0, ls="--", label="LF estimate")
         ax.plot(t, col(ref) * scale, color="k", lw=0.8, ls=":", label="reference")
+        ax.step(t, setpoint[truth] * scale, where="post", color="tab:red", lw=1.0, label="set-point")
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
     axes[0].legend(loc="upper left", fontsize=8, ncol=3)
     axes[0].set_title(title)
     axes[-1].set_xlabel("t [s]")
-    paths.append(_save(fig, out_dir / "pose.png"))
+    paths.append(save(fig, "pose.png"))
 
     if result.omegas_rad_s:
         first = c.index("weight_0")
@@ -341,7 +410,7 @@ def write_plots(result: RunResult, out_dir: Path) -> list[Path]:
         ax2.set_xlabel("t [s]")
         ax2.legend(fontsize=8)
         ax2.grid(alpha=0.3)
-        paths.append(_save(fig, out_dir / "weights.png"))
+        paths.append(save(fig, "weights.png"))
     elif np.any(np.isfinite(col("omega_hat_rad_s"))):
         fig, ax = plt.subplots(figsize=(11, 4))
         ax.plot(t, col("omega_hat_rad_s"), label="ω̂")
@@ -352,7 +421,7 @@ def write_plots(result: RunResult, out_dir: Path) -> list[Path]:
         ax.legend()
         ax.grid(alpha=0.3)
         ax.set_title(f"{title}: peak frequency estimate")
-        paths.append(_save(fig, out_dir / "omega.png"))
+        paths.append(save(fig, "omega.png"))
 
     fig, axes = plt.subplots(3, 1, figsize=(11, 8), sharex=True)
     for ax, (cmd, act, label) in zip(axes, (("tau_x_n", "tau_act_x_n", "X [N]"), ("tau_y_n", "tau_act_y_n", "Y [N]"),
@@ -364,7 +433,7 @@ def write_plots(result: RunResult, out_dir: Path) -> list[Path]:
     axes[0].legend(fontsize=8)
     axes[0].set_title(f"{title}: generalized force")
     axes[-1].set_xlabel("t [s]")
-    paths.append(_save(fig, out_dir / "forces.png"))
+    paths.append(save(fig, "forces.png"))
 
     thrust_cols = [n for n in c.names if n.startswith("thrust_")]
     if thrust_cols:
@@ -380,7 +449,7 @@ def write_plots(result: RunResult, out_dir: Path) -> list[Path]:
         ax1.grid(alpha=0.3)
         ax2.grid(alpha=0.3)
         ax1.set_title(f"{title}: thruster usage")
-        paths.append(_save(fig, out_dir / "thrusters.png"))
+        paths.append(save(fig, "thrusters.png"))
 
     if np.any(np.isfinite(col("mrac_mass_surge_kg"))):
         fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
@@ -394,12 +463,24 @@ def write_plots(result: RunResult, out_dir: Path) -> list[Path]:
         ax2.set_ylabel("damping [N·s/m]")
         ax2.set_xlabel("t [s]")
         ax2.grid(alpha=0.3)
-        paths.append(_save(fig, out_dir / "mrac.png"))
+        paths.append(save(fig, "mrac.png"))
     return paths
 
 
+def _setpoint_steps(setpoints: Sequence[Any], t: np.ndarray) -> dict[str, np.ndarray]:
+    """The set-point in force at each ``t`` [s] per pose column (NaN before the first, or where a set-point
+    leaves that coordinate out: heading-only)."""
+    steps = {key: np.full(t.shape, np.nan) for key in ("north_m", "east_m", "heading_rad")}
+    for point in sorted(setpoints, key=lambda p: p.t_s):
+        after = t >= point.t_s
+        for key, column in steps.items():
+            value = getattr(point, key)
+            column[after] = np.nan if value is None else value
+    return steps
+
+
 def _save(fig: Any, path: Path) -> Path:
-    fig.tight_layout()
+    fig.tight_layout(rect=(0.0, 0.03, 1.0, 1.0) if fig.legends else None)
     fig.savefig(path, dpi=110)
     import matplotlib.pyplot as plt  # noqa: PLC0415
 

@@ -131,13 +131,28 @@ def test_hil_process_notifies_systemd_and_stops_cleanly_on_sigterm(tmp_path: Pat
             if process.poll() is None:
                 process.kill()
                 process.communicate(timeout=30.0)
-    assert process.returncode == 0, stderr.decode(errors="replace")
+    # a clean stop; but no controller was there during the whole run: nothing was tested, and it says so
+    assert process.returncode == 1, stderr.decode(errors="replace")
+    assert b"no controller for vessel 'cli' was seen during the whole run" in stderr
     assert any(b"STOPPING=1" in m for m in stopping)
     assert b"gnss1 (gnss, 5 Hz) -> nmea0183 serial0 " + str(port).encode() in stdout
     summary = json.loads((out / "hil_summary.json").read_text())
     assert summary["stopped_by"] == f"signal {stop_signal.name}"
     assert 0.0 < summary["duration_s"] < 600.0
     assert (out / "truth.csv").exists() and not port.exists()
+
+
+def test_hil_without_a_controller_for_the_whole_run_exits_1_saying_so(
+        tmp_path: Path, rig: Any, capsys: pytest.CaptureFixture[str]) -> None:
+    scenario, controller, _ = _files(tmp_path, rig)
+    extra = f"tcp/127.0.0.1:{rig.free_port()}"
+    assert main(["hil", str(scenario), "--controller-config", str(controller), "--duration", "1",
+                 "--zenoh-listen", extra]) == 1
+    captured = capsys.readouterr()
+    assert "no controller for vessel 'cli' was seen during the whole run" in captured.err
+    # --zenoh-listen added an endpoint; the daemon's (from its configuration) is still connected to
+    daemon_endpoint = yaml.safe_load(controller.read_text())["zenoh"]["listen"][0]
+    assert f"listen ['{extra}'], connect ['{daemon_endpoint}']" in captured.out
 
 
 def test_kind_overrides_keep_what_still_applies(tmp_path: Path) -> None:

@@ -172,7 +172,11 @@ def test_zenoh_endpoints_meet_in_both_directions() -> None:
     assert zenoh_endpoints(connect_only) == (("tcp/127.0.0.1:7448",), ())
     both = ZenohWiring(listen=("tcp/127.0.0.1:7447",), connect=("tcp/127.0.0.1:7448",))
     assert zenoh_endpoints(both) == ((), ("tcp/127.0.0.1:7447",))
-    assert zenoh_endpoints(both, listen=("tcp/127.0.0.1:9000",)) == (("tcp/127.0.0.1:9000",), ())
+    # given endpoints are added: the way to the daemon stays
+    assert zenoh_endpoints(both, listen=("tcp/127.0.0.1:9000",)) == (("tcp/127.0.0.1:9000",), ("tcp/127.0.0.1:7447",))
+    assert zenoh_endpoints(listen_only, connect=("tcp/127.0.0.1:9001", "tcp/127.0.0.1:7447")) == (
+        (), ("tcp/127.0.0.1:7447", "tcp/127.0.0.1:9001"))
+    assert zenoh_endpoints(ZenohWiring(), listen=("tcp/127.0.0.1:9000",)) == (("tcp/127.0.0.1:9000",), ())
     via_router = ZenohWiring(mode="client", connect=("tcp/10.0.0.1:7447",))
     assert zenoh_endpoints(via_router) == ((), ("tcp/10.0.0.1:7447",))  # the same router, never its address
     with pytest.raises(ValueError, match="no zenoh listen or connect endpoint"):

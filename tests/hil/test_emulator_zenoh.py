@@ -18,6 +18,7 @@ from __future__ import annotations
 import csv
 import itertools
 import threading
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -235,3 +236,37 @@ def test_engage_brings_the_controller_into_dp(run: dict[str, Any]) -> None:
 def test_the_plant_token_comes_and_goes(run: dict[str, Any]) -> None:
     assert run["steps"]["plant_gone"]
     assert run["summary"]["stopped_by"] == "stop"
+
+
+def test_without_engage_the_plant_sends_no_operator_request(rig: Any, tmp_path: Path, closing: list[Any]) -> None:
+    """The scenario's set-points are operator requests: a plant that only stands in for the drives (no
+    --engage) sends none, neither at their times nor to a controller it sees appear."""
+    node, endpoint = open_listener(VESSEL + "-quiet", lease_s=1.0)
+    closing.append(node)
+    requests = node.subscribe("setpoint", Inbox(maxlen=100))
+    controller = rig.write_yaml(tmp_path / "vessel.yaml", {
+        "vessel_id": VESSEL + "-quiet",
+        "transports": [{"name": "serial0", "protocol": "nmea0183", "port": str(tmp_path / "ttyGNSS")}],
+        "sensors": [{"name": "gnss1", "kind": "position", "transport": "serial0"}],
+        "zenoh": {"listen": [endpoint]},
+    })
+    scenario = rig.write_yaml(tmp_path / "scenario.yaml", {
+        "name": "quiet", "vessel": "cybership2", "duration_s": 60, "seed": 5,
+        "setpoints": [{"t_s": 0, "north_m": 0, "east_m": 0, "heading_deg": 0},
+                      {"t_s": 0.5, "north_m": 2, "east_m": 0, "heading_deg": 10}],
+        "sensors": [{"name": "gnss1", "kind": "gnss", "rate_hz": 1}],
+    })
+    fake = FakeController(node)  # alive (its token) and publishing status, as a daemon would
+    closing.append(fake)
+    node.declare_alive("controller")
+    fake.start()
+    emulator = rig.EmulatorRun(scenario, controller, HilOptions(out_dir=tmp_path / "out"))
+    closing.append(emulator)
+    emulator.start()
+    assert node.wait_for_peers(1, rig.WAIT_S)
+    # 2.5 s of plant time: both set-points are due, the controller has been seen; nothing may arrive
+    assert not requests.sink.wait_count(1, 2.5)
+    emulator.emulator.stop()
+    summary = emulator.join()
+    assert summary["setpoints"] == [] and not summary["engage"]["requested"]
+    assert emulator.emulator.controller_seen

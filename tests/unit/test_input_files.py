@@ -98,6 +98,31 @@ def test_demo_checks_the_scenario_like_run_before_starting_anything(tmp_path: Pa
     assert "unknown built-in scenario 'no-such-scenario' (known: " in capsys.readouterr().err
 
 
+def test_a_missing_input_file_exits_2_in_every_command(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The same kind of error, the same exit code: a file named on the command line that is not there is a
+    usage error (2) whichever command was given it."""
+    missing = str(tmp_path / "missing.file")
+    controller = str(ROOT / "deploy" / "config" / "cybership2.yaml")
+    out = str(tmp_path / "out")
+    calls = [
+        (dpcontrol_main, ["check-config", missing]),
+        (dpcontrol_main, ["run", "--config", missing, "--duration", "1"]),
+        (dpcontrol_main, ["decode", "nmea0183", missing]),
+        (dpcontrol_main, ["replay", missing, "--config", controller]),
+        (dpcontrol_main, ["replay", missing, "--config", missing]),
+        (dpcontrol_main, ["log", "export", missing, "--csv", out]),
+        (sim_plant_main, ["run", missing, "--out", out, "--duration", "1"]),
+        (sim_plant_main, ["run", "cs2-seed000", "--controller-config", missing, "--out", out, "--duration", "1"]),
+        (sim_plant_main, ["hil", missing, "--controller-config", controller, "--duration", "1"]),
+        (sim_plant_main, ["hil", "cs2-seed000", "--controller-config", missing, "--duration", "1"]),
+        (sim_plant_main, ["demo", missing, "--duration", "1", "--no-live", "--out", out]),
+    ]
+    for main, argv in calls:
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err
+        assert "missing.file" in err and "Traceback" not in err, (argv, err)
+
+
 def test_replay_and_export_say_a_file_is_not_a_recording(bad_files: dict[str, Path], tmp_path: Path,
                                                          capsys: pytest.CaptureFixture[str]) -> None:
     config = ROOT / "deploy" / "config" / "cybership2.yaml"
@@ -105,7 +130,7 @@ def test_replay_and_export_say_a_file_is_not_a_recording(bad_files: dict[str, Pa
         with pytest.raises(ValueError, match="no records read — not a dpcontrol recording"):
             replay(bad_files[kind], config)
         out = tmp_path / f"csv-{kind}"
-        assert dpcontrol_main(["log", "export", str(bad_files[kind]), "--csv", str(out)]) == 1
+        assert dpcontrol_main(["log", "export", str(bad_files[kind]), "--csv", str(out)]) == 2
         err = capsys.readouterr().err
         assert f"dpcontrol log export: {bad_files[kind]}: no records read" in err and "nothing written" in err, err
         assert list(out.iterdir()) == []

@@ -71,3 +71,10 @@ def test_plant_never_imports_the_controller() -> None:
     files = [p for p in _files("sim_plant") if "bench" not in p.relative_to(ROOT).parts]
     assert files, "sim_plant has no sources"
     assert _violations(files, CONTROLLER) == []
+
+
+def test_operator_tools_speak_only_zenoh() -> None:
+    """The console (like the monitor and dpcontrol setpoint) reaches the controller over Zenoh only: it never
+    imports the controller's runtime or algorithms (it may use the shared vessel data in dpcontrol.models)."""
+    files = [ROOT / "dpcontrol" / name for name in ("console.py", "monitor.py", "setpoint.py")]
+    assert _violations(files, CONTROLLER | {"sim_plant"}) == []

@@ -90,11 +90,84 @@ def test_render_shows_every_part() -> None:
     assert "[bold]no change[/bold]" in text           # payload text is never markup
     assert "north [m]" in text and "X [kN]" in text    # unit brackets survive
     assert "bow" in text and "stern" in text and "no (trip)" in text
-    assert "GYRO2_FROZEN" in text and "(1 active)" in text
+    assert "GYRO2_FROZEN" in text and "(1 active, 1 cleared)" in text
     assert "p99 187 µs" in text and "missed 3" in text and "host steal 1.5 %" in text
     # the last operator request (dpcontrol setpoint's answer), its age in the controller's time
     assert "last request refused 12 s ago: auto_heading refused: no estimate yet; mode standby" in text
     assert "worst case:  bus_a holds (az_s 58 %)  bow_room WOULD NOT HOLD" in text  # the consequence analysis
+
+
+def _with(state: MonitorState, topic: str, payload: bytes) -> MonitorState:
+    topics = dict(state.topics)
+    topics[topic] = TopicView(message=sc.parse_message(topic, payload), rx_t_s=state.now_s - 0.2, received=1)
+    return MonitorState(vessel=state.vessel, now_s=state.now_s, topics=topics, alive=state.alive, peers=state.peers,
+                        wall_s=state.wall_s)
+
+
+def _status(**fields: Any) -> bytes:
+    return sc.status_payload(t_s=101.0, seq=1, mode="auto_position", **fields)
+
+
+def test_forces_take_the_unit_of_their_magnitude_per_column() -> None:
+    # a 1:70 model: newtons (no more "0.0 kN" everywhere); yaw moment column in N·m on its own
+    model = sc.control_payload(t_s=101.0, seq=1, controller="pid", tau_b=[1.5, -0.82, 0.2],
+                               tau_achieved_b=[1.4, -0.8, 0.19])
+    text = _text(render(_with(_state(), "control", model)))
+    assert "X [N]" in text and "Y [N]" in text and "N [N·m]" in text and "kN" not in text.split("Control")[1][:400]
+    assert "1.50" in text and "-0.82" in text and "0.20" in text
+    # a tanker: meganewtons in X, kilonewtons in Y, within one table
+    tanker = sc.control_payload(t_s=101.0, seq=1, controller="pid", tau_b=[1.25e6, -3.5e4, 2.0e7])
+    text = _text(render(_with(_state(), "control", tanker)))
+    assert "X [MN]" in text and "Y [kN]" in text and "N [MN·m]" in text
+    assert "1.25" in text and "-35.0" in text and "20.0" in text
+    # thrust columns too: the model's thrusters in N
+    command = sc.command_payload(t_s=101.0, seq=1, mode="auto_position", names=["bow", "stern"],
+                                 thrust_n=[0.9, -0.35], azimuth_rad=[math.pi / 2, 0.0])
+    text = _text(render(_with(_state(), "command", command)))
+    assert "cmd [N]" in text and "0.90" in text and "-0.35" in text
+
+
+def test_alarms_show_age_and_utc_time_full_codes_and_counts() -> None:
+    code = "thrusters.drives_lost_" + "x" * 40  # 62 characters: the schema allows 64
+    status = _status(alarms=[sc.Alarm(code, "alarm", "drives lost", 41.0, True),
+                             sc.Alarm("GNSS1_STALE", "warning", "cleared", 50.0, False),
+                             sc.Alarm("GNSS2_STALE", "warning", "cleared too", 55.0, False)])
+    wall = 1_790_000_000.0  # 2026-09-21 14:13:20 UTC
+    state = _with(MonitorState(vessel="supply", now_s=10.0, wall_s=wall), "status", status)
+    text = _text(render(state), width=200)
+    assert code in text                                   # not cut
+    assert "(1 active, 2 cleared)" in text
+    # raised 60 s before the status (daemon clock), which arrived 0.2 s ago: 60.2 s old, at 14:12:19.8 UTC
+    assert "60 s" in text and "14:12:19" in text
+    assert "since_t_s" not in text and "41.0" not in text  # never the daemon's monotonic seconds
+
+
+def test_sea_state_reads_for_the_hull_and_shows_the_peak_period() -> None:
+    def mmae_text(omega_hat: float, length_m: float) -> str:
+        payload = sc.mmae_payload(t_s=101.0, seq=1, omegas_rad_s=[0.56, 0.73, 0.80], weights=[0.2, 0.3, 0.5],
+                                  omega_hat_rad_s=omega_hat, sea_states=sc.SeaStateTable.froude_scaled(length_m))
+        return _text(render(_with(_state(), "mmae", payload)), width=200)
+
+    # CyberShip II (1.255 m): a 1.2 rad/s sea is far longer than its "high" band, not "high" at full scale
+    text = mmae_text(1.2, 1.255)
+    assert "Tp 5.2 s" in text and "long swell" in text and "sea state: high" not in text
+    assert "sea state: calm" in mmae_text(8.0, 1.255)           # short model-basin waves
+    assert "sea state: calm" in mmae_text(0.84, 100.0)           # seed 001's calm on its 100 m vessel
+    assert "sea state: high" in mmae_text(0.56, 100.0)
+
+
+def test_plant_and_feedback_come_from_the_daemons_status() -> None:
+    # this monitor's own session sees no plant and no feedback; the daemon hears both
+    alive = {"controller": AliveState(True, True, 1.0, 0), "plant": AliveState(False, False, None, 0)}
+    state = MonitorState(vessel="supply", now_s=10.0, alive=alive)
+    text = _text(render(_with(state, "status", _status(drives=sc.DrivesSeen(True, True, 0.1)))), width=200)
+    assert "plant ● alive" in text and "not seen" not in text
+    assert "feedback (daemon's 0.1 s)" in text
+    text = _text(render(_with(state, "status", _status(drives=sc.DrivesSeen(False, True, None)))), width=200)
+    assert "plant ✖ LOST" in text and "feedback (none received by the daemon)" in text
+    # an older daemon that does not say: the monitor's own view, marked as such
+    text = _text(render(_with(state, "status", _status())), width=200)
+    assert "plant ○ not seen (monitor's view)" in text and "feedback (no data here)" in text
 
 
 def test_render_with_no_data_at_all() -> None:
@@ -111,7 +184,7 @@ def test_render_with_some_topics_missing_and_some_stale() -> None:
     topics["status"] = TopicView(message=topics["status"].message, rx_t_s=12.0, received=1)
     text = _text(render(MonitorState(vessel="supply", now_s=20.0, topics=topics)))
     assert "MMAE (no data)" in text
-    assert "feedback (no data)" in text
+    assert "feedback (no data here)" in text  # (the status says nothing of the drives: this session's view)
     assert "stale 8.0 s" in text
     assert "12.34" in text  # the rest still shows
 
