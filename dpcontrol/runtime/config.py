@@ -26,6 +26,7 @@ from dpcontrol.models.schema import ConfigError, Section, join, parse_list
 from dpcontrol.models.vessels import VesselData, vessel_from_config
 from dpcontrol.runtime.hub import HubConfig, SensorConfig, SensorKind
 from dpcontrol.yamlfile import read_yaml_file
+from interfaces.nmea0183.codec import DEFAULT_MAX_SENTENCE_CHARS
 from interfaces.recorder import RecorderSettings
 from interfaces.zenoh.config import ZenohConfig
 
@@ -39,7 +40,7 @@ VESSEL_ID_PATTERN = re.compile(r"^[A-Za-z0-9_\-]{1,64}$")
 class TransportConfig:
     """One physical input: a serial port, a CAN bus or a MAVLink link.
 
-    ``settings`` holds the protocol's own keys: nmea0183 ``port, baud``; nmea2000 ``interface,
+    ``settings`` holds the protocol's own keys: nmea0183 ``port, baud, max_sentence_chars``; nmea2000 ``interface,
     channel`` (+ ``bitrate`` etc. passed to python-can); mavlink ``url`` (+ ``signing_key_hex``).
     """
 
@@ -237,6 +238,9 @@ def _parse_transport(section: Section) -> TransportConfig:
     if protocol == "nmea0183":
         settings["port"] = section.string("port")
         settings["baud"] = section.integer("baud", 4800, minimum=300)
+        # longest sentence read; the default takes high-precision receivers (interfaces.nmea0183.codec)
+        settings["max_sentence_chars"] = section.integer("max_sentence_chars", DEFAULT_MAX_SENTENCE_CHARS,
+                                                         minimum=82, maximum=4096)
     elif protocol == "nmea2000":
         settings["interface"] = section.string("interface")
         channel = section.raw("channel", None)
@@ -279,7 +283,7 @@ def _parse_route(section: Section, transports: Mapping[str, TransportConfig]) ->
         if protocol != "nmea0183":
             raise ConfigError(f"{section.path}.sentences", "sentences only on an nmea0183 transport", protocol)
         sentences = tuple(s for _, s in section.items("sentences", min_items=1))
-        known = ("GGA", "GNS", "RMC", "GST", "HDT", "THS", "ROT")
+        known = ("GGA", "GNS", "RMC", "GLL", "GST", "HDT", "THS", "ROT")
         for where, value in section.items("sentences"):
             if value not in known:
                 raise ConfigError(where, "one of " + ", ".join(known), value)

@@ -166,6 +166,7 @@ class InputPump:
             from interfaces.nmea0183.transport import SerialReader  # noqa: PLC0415
 
             reader = SerialReader(s["port"], source=name, clock=self.clock, baudrate=s["baud"],
+                                  max_sentence_chars=s["max_sentence_chars"],
                                   on_line=lambda line, n=name: self._nmea_line(n, line),
                                   on_link=lambda status, n=name: self._queue.append(
                                       LinkStatus(status.t_s, n, status.connected, status.detail)))

@@ -10,8 +10,8 @@ identical measurements.
 
 Defaults, chosen so that one physical quantity is not counted twice:
 
-* NMEA 0183 position sensors use GGA, GNS (and GST statistics); RMC only when listed in
-  ``sentences`` (a receiver sending GGA and RMC for the same epoch would otherwise double it);
+* NMEA 0183 position sensors use GGA, GNS (and GST statistics); RMC and GLL only when listed in
+  ``sentences`` (a receiver sending GGA and RMC or GLL for the same epoch would otherwise double it);
   heading sensors use HDT, THS (and ROT);
 * NMEA 2000: every position (129025, 129029) and heading (127250) PGN from the configured source
   address (or any address when none is configured);

@@ -27,7 +27,7 @@ from interfaces.messages import (
     Wind,
 )
 from interfaces.nmea0183 import (
-    NMEA_MAX_SENTENCE_CHARS,
+    DEFAULT_MAX_SENTENCE_CHARS,
     REJECT_REASONS,
     Nmea0183Decoder,
     encode_gga,
@@ -120,7 +120,7 @@ def test_fuzzed_stream_never_raises_and_every_input_is_accounted_for() -> None:
         frames = decoder.feed_frames(data + b"\r\n")
         frames_total += len(frames)
         assert decoder.counters["frames"] - before == len(frames)
-        assert decoder.buffered_bytes <= NMEA_MAX_SENTENCE_CHARS
+        assert decoder.buffered_bytes <= DEFAULT_MAX_SENTENCE_CHARS
         if data.strip(b"\r\n"):
             assert frames, (kind, data)
         if kind == "valid":  # whatever came before, a clean sentence after CR LF decodes as on its own

@@ -54,7 +54,7 @@ SENSOR_FIELDS = {  # (sensor index, field) → bad value
     (2, "source_address"): "seven", (2, "sigma_deg"): "tiny", (2, "rate_hz"): 0,
 }
 TRANSPORT_FIELDS = {
-    (0, "name"): 5, (0, "protocol"): 183, (0, "port"): 0, (0, "baud"): "fast",
+    (0, "name"): 5, (0, "protocol"): 183, (0, "port"): 0, (0, "baud"): "fast", (0, "max_sentence_chars"): "long",
     (1, "interface"): 1, (1, "channel"): [0], (1, "options"): "fd",
     (2, "url"): 14550, (2, "heartbeat_timeout_s"): "long", (2, "signing_key_hex"): "secret",
 }
