@@ -39,6 +39,7 @@ from nmea2000 import _canboat as canboat
 from nmea2000 import backend
 
 from dpcontrol.models.frames import TWO_PI, ssa
+from interfaces.limits import violation
 from interfaces.messages import (
     Attitude,
     CourseOverGround,
@@ -368,7 +369,9 @@ class N2kDecoder:
     * 130306: references "true (ground, north)" and "apparent" become :class:`Wind`; the others
       (magnetic, true boat/water referenced) → ``Rejected("unsupported_reference")``.
     * "Not available"/"error" values → ``None`` fields, or ``Rejected("not_available")`` when
-      nothing usable is left; values outside their physical range → ``Rejected("out_of_range")``.
+      nothing usable is left; values outside their physical range (:mod:`interfaces.limits`: a
+      129026 speed of 655 m/s, a 129029 altitude of 9e12 m, an attitude angle beyond π ...) →
+      ``Rejected("out_of_range")``.
 
     Parameters
     ----------
@@ -459,9 +462,11 @@ class N2kDecoder:
             fields = _fields(pgn, bytes(payload))
             if fields is None:
                 return Rejected("decode_error", f"PGN {pgn}: the canboat decoder returned nothing", raw)
-            return _DECODERS[pgn](self, fields, source, t_s, raw)
+            item = _DECODERS[pgn](self, fields, source, t_s, raw)
         except Exception as error:  # a library surprise (odd value type) must not take the reader down
             return Rejected("decode_error", f"PGN {pgn}: {type(error).__name__}: {error}", raw)
+        problem = None if isinstance(item, Rejected) else violation(item)
+        return item if problem is None else Rejected("out_of_range", f"PGN {pgn}: {problem}", raw)
 
     def _position_rapid(self, f: Mapping[str, object], source: int, t_s: float, raw: bytes) -> PositionFix | Rejected:
         lat, lon = _number(f, "latitude"), _number(f, "longitude")
@@ -537,7 +542,9 @@ class N2kDecoder:
         yaw, pitch, roll = _number(f, "yaw"), _number(f, "pitch"), _number(f, "roll")
         if yaw is None and pitch is None and roll is None:
             return Rejected("not_available", "127257 yaw/pitch/roll not available", raw)
-        return Attitude(roll, pitch, None if yaw is None else ssa(yaw))
+        # int16 × 1e-4 rad reaches ±3.2767: beyond ±π it is no Euler angle, and rejected (interfaces.limits),
+        # not wrapped into a plausible yaw
+        return Attitude(roll, pitch, yaw)
 
     def _wind(self, f: Mapping[str, object], _source: int, _t_s: float, raw: bytes) -> Wind | Rejected:
         reference = _WIND_REFERENCES.get(_code(f, "reference"))  # type: ignore[arg-type]

@@ -48,6 +48,10 @@ def test_metadata_lines_are_not_frames(line: str) -> None:
     "can0 ZZZZZZZZ [8] 00 00 00 00 00 00 00 00",
     "(1.0) slcan0 09F112CC#FF7",  # odd number of hex digits
     "(x) slcan0 09F112CC#FF72",  # bad timestamp
+    "(nan) slcan0 09F112CC#FF72",  # float() takes these; candump never writes them
+    "(inf) slcan0 09F112CC#FF72",
+    "(-inf) slcan0 09F112CC#FF72",
+    "(1e400) slcan0 09F112CC#FF72",
     "(1.0) slcan0 09F112CC#" + "00" * 9,  # nine bytes in a classic frame
     "<0x18eeff01> [8] " + "00 " * 400,
 ])
