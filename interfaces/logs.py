@@ -152,11 +152,11 @@ def _split_address(address: str) -> tuple[str, str]:
 # registry
 
 from interfaces.mavlink.logs import decode_tlog  # noqa: E402  (they import records, not this module)
-from interfaces.nmea2000.logs import decode_candump_log  # noqa: E402
+from interfaces.nmea2000.logs import decode_nmea2000_log  # noqa: E402
 
 LOG_DECODERS: dict[str, Callable[..., Iterator[dict[str, object]]]] = {
     "nmea0183": decode_nmea0183_log,
-    "nmea2000": decode_candump_log,
+    "nmea2000": decode_nmea2000_log,
     "mavlink": decode_tlog,
 }
 """Protocol name (as typed after ``dpcontrol decode``) → log decoder."""

@@ -352,8 +352,9 @@ class N2kDecoder:
     :attr:`counters`: ``frames`` = ``ignored`` + ``bad_frame`` + ``single_frames`` +
     ``fast_packet_frames``; every returned reject adds one to ``rejected`` and to
     ``rejected.<reason>``, every returned message one to ``messages``; and ``messages`` +
-    ``rejected`` = ``single_frames`` + ``fast_packet_messages`` + the fast-packet rejects
-    (``truncated_fast_packet``, ``bad_fast_packet``) + ``bad_frame``.
+    ``rejected`` = ``single_frames`` + ``fast_packet_messages`` + ``whole_messages`` (reassembled by a
+    gateway, :meth:`decode_message`) + the fast-packet rejects (``truncated_fast_packet``,
+    ``bad_fast_packet``) + ``bad_frame``.
 
     Validity before values:
 
@@ -423,6 +424,23 @@ class N2kDecoder:
         counters["single_frames"] += 1
         out = self.expire(t_s) if self.assembler.pending else []
         out.append(self._finish(source, pgn, self.decode_payload(pgn, data, source, t_s)))
+        return out
+
+    def decode_message(self, pgn: int, source: int, payload: bytes | bytearray | memoryview,
+                       t_s: float) -> list[N2kDecoded]:
+        """Decode one whole message as a gateway delivers it (fast packets already joined: Actisense,
+        iKonvert, canboat's FAST format), received at ``t_s`` [s].
+
+        Counted as ``whole_messages`` (or ``ignored_messages`` for a PGN not decoded here); otherwise as
+        :meth:`decode_frame`.
+        """
+        counters = self.counters
+        out = self.expire(t_s) if self.assembler.pending else []
+        if pgn not in SUPPORTED_PGNS:
+            counters["ignored_messages"] += 1
+            return out
+        counters["whole_messages"] += 1
+        out.append(self._finish(source, pgn, self.decode_payload(pgn, bytes(payload), source, t_s)))
         return out
 
     def expire(self, t_s: float) -> list[N2kDecoded]:
