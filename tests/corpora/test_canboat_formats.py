@@ -19,7 +19,6 @@ and we do not use is accounted for by one of our rules.
 
 from __future__ import annotations
 
-import calendar
 import json
 import math
 import re
@@ -158,7 +157,8 @@ def agrees(record: dict[str, Any], theirs: dict[str, Any]) -> bool:
     """Our measurement equals canboat's fields of the same message, within canboat's printed resolution."""
     kind = record["kind"]
     if kind == "position":
-        return abs(record["lat_deg"] - theirs["Latitude"]) <= 1.5e-7 and abs(record["lon_deg"] - theirs["Longitude"]) <= 1.5e-7
+        return (abs(record["lat_deg"] - theirs["Latitude"]) <= 1.5e-7
+                and abs(record["lon_deg"] - theirs["Longitude"]) <= 1.5e-7)
     if kind == "heading":  # true; from a magnetic one: sensor + deviation + variation
         heading = theirs["Heading"]
         if theirs.get("Reference.name") == "Magnetic":
@@ -167,7 +167,7 @@ def agrees(record: dict[str, Any], theirs: dict[str, Any]) -> bool:
     if kind == "rate_of_turn":
         return abs(math.degrees(record["rate_radps"]) - theirs["Rate"]) <= 1e-5
     if kind == "attitude":
-        return all(record.get(ours) is None and theirs.get(name) is None
+        return all((record.get(ours) is None and theirs.get(name) is None)
                    or _angle_close(record[ours], theirs.get(name), 0.06)
                    for ours, name in (("yaw_rad", "Yaw"), ("pitch_rad", "Pitch"), ("roll_rad", "Roll")))
     if kind == "course_over_ground":
