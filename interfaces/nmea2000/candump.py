@@ -74,6 +74,8 @@ def parse_candump_line(line: str, line_no: int = 0) -> CandumpFrame | None:
     if len(line) > MAX_LINE_CHARS:
         raise ValueError(f"line of {len(line)} characters is too long for a candump frame")
     stripped = line.strip()
+    if not stripped.isascii():  # canboat's parser (Rust) panics on a multi-byte character: never hand it one
+        raise ValueError("non-ASCII byte in a candump line")
     try:
         parsed = canboat.parse_line("candump", stripped)
     except ValueError as error:

@@ -191,6 +191,9 @@ def read_text_format(data: bytes, log_format: str) -> Iterator[LogItem]:
             yield LogError(number, f"line of {len(stripped)} characters is too long for a {log_format} frame",
                            stripped[:80])
             continue
+        if not stripped.isascii():  # canboat's parser (Rust) panics on a multi-byte character: never hand it one
+            yield LogError(number, f"non-ASCII byte in a {log_format} line", stripped[:80])
+            continue
         try:
             parsed = canboat.parse_line(parser, stripped)
         except ValueError as error:
@@ -289,6 +292,8 @@ def _parses(log_format: str, line: str) -> bool:
             return parse_candump_line(line) is not None
         except ValueError:
             return False
+    if not line.isascii():  # (canboat's parser panics on a multi-byte character)
+        return False
     try:
         return canboat.parse_line(_PARSER_NAME[log_format], line) is not None
     except ValueError:

@@ -11,6 +11,7 @@ bytes, so the value checks, not the framing checks, are what is exercised. This 
 
 from __future__ import annotations
 
+import base64
 import math
 import struct
 
@@ -24,6 +25,7 @@ from interfaces.mavlink.codec import MavlinkDecoder, MavlinkEncoder
 from interfaces.messages import Rejected
 from interfaces.nmea0183 import Nmea0183Decoder
 from interfaces.nmea2000.codec import FAST_PACKET_PGNS, SUPPORTED_PGNS, N2kDecoder
+from interfaces.nmea2000.logformats import LOG_FORMATS
 
 FUZZ = settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
@@ -133,6 +135,49 @@ def candump_line(t: tuple[int, int, int, bytes]) -> str:
     st.text(max_size=80)), max_size=20))
 def test_nmea2000_candump_log(lines: list[str]) -> None:
     assert_clean_records(list(decode_log("nmea2000", "\n".join(lines).encode("utf-8", "replace"))))
+
+
+def format_line(log_format: str, t: tuple[int, int, int, bytes]) -> str:
+    """A line of a text capture format carrying ``data`` for ``pgn`` from ``source`` (values unchecked)."""
+    prio, pgn, source, data = t
+    can_id = canboat.can_id_compose(prio, pgn, source, 255)
+    if log_format == "plain":
+        return f"2020-08-22T13:52:36.949Z,{prio},{pgn},{source},255,{len(data)},{','.join(f'{b:02x}' for b in data)}"
+    if log_format == "ydwg":
+        return f"00:29:58.617 R {can_id:08X} {' '.join(f'{b:02X}' for b in data)}"
+    if log_format == "actisense":
+        return f"A000057.055 {source:02X}FF{prio:X} {pgn:05X} {data.hex().upper()}"
+    if log_format == "ikonvert":
+        return f"!PDGY,{pgn},{prio},{source},255,481.706,{base64.b64encode(data).decode()}"
+    if log_format == "trc":
+        return f"     1)        48.6  Rx     {can_id:08X}  {len(data)}  {' '.join(f'{b:02X}' for b in data)}"
+    return f"({t[1]}.000000) can0 {can_id:08X}#{data[:8].hex()}"
+
+
+@FUZZ
+@given(st.sampled_from([f for f in LOG_FORMATS if f != "pcap"]), st.lists(st.one_of(
+    st.tuples(st.integers(0, 7), st.sampled_from(sorted(SUPPORTED_PGNS)), st.integers(0, 255),
+              st.binary(max_size=48)),
+    st.text(max_size=60)), max_size=12))
+def test_nmea2000_log_formats(log_format: str, lines: list[tuple[int, int, int, bytes] | str]) -> None:
+    text = "\n".join(line if isinstance(line, str) else format_line(log_format, line) for line in lines)
+    if log_format == "trc":
+        text = ";$FILEVERSION=1.1\n;$STARTTIME=42176.7577227546\n" + text
+    data = text.encode("utf-8", "replace")
+    assert_clean_records(list(decode_log("nmea2000", data, log_format=log_format)))
+    assert_clean_records(list(decode_log("nmea2000", data)))  # detected: whatever it is taken for
+
+
+@FUZZ
+@given(st.binary(max_size=200), st.lists(st.tuples(st.sampled_from(sorted(SUPPORTED_PGNS)), st.binary(max_size=12)),
+                                         max_size=10))
+def test_nmea2000_pcap(junk: bytes, packets: list[tuple[int, bytes]]) -> None:
+    header = struct.pack("<IHHiIII", 0xA1B2C3D4, 2, 4, 0, 0, 65535, 227)
+    records_ = b"".join(struct.pack("<IIII", 1_600_000_000, k, 8 + len(p), 8 + len(p))
+                        + struct.pack(">IB3x", 0x80000000 | canboat.can_id_compose(2, pgn, 7, 255), len(p)) + p
+                        for k, (pgn, p) in enumerate(packets))
+    assert_clean_records(list(decode_log("nmea2000", header + records_ + junk)))
+    assert_clean_records(list(decode_log("nmea2000", header + junk)))
 
 
 # ----------------------------------------------------------------------------------------------
