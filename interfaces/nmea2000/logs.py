@@ -5,10 +5,11 @@ Devices raw, iKonvert, PCAN-View, SocketCAN pcap/pcapng), detected from the file
 per decoded measurement::
 
     {"source": "n2k:0", "kind": "position", "pgn": 129025, "lat_deg": 52.1, "lon_deg": 4.3,
-     "quality": "gps", "t_s": 1502984866.42, "line": 12}
+     "quality": "gps", "t_s": 1502984866.42, "line": 12, "name": "c0320c0029e0f05a"}
 
 (``sample_time`` = UTC seconds of day where the PGN carries one, i.e. 129029; ``t_s`` = capture
-time where the format has one, see :class:`~interfaces.nmea2000.logformats.LogFrame`), and one per
+time where the format has one, see :class:`~interfaces.nmea2000.logformats.LogFrame`; ``name`` = the
+64-bit NAME, in hex, the source's address was claimed with, once a 60928 claim was seen), and one per
 rejected input (``raw`` = hex of the offending bytes; for a line that is not a frame, the line itself)::
 
     {"rejected": "truncated_fast_packet", "detail": "...", "source": "n2k:0", "pgn": 129029,
@@ -27,12 +28,14 @@ from interfaces.nmea2000.logformats import LogFrame, read_log
 from interfaces.records import LogSource, message_record, rejected_record
 
 
-def _record(result: N2kDecoded, t_s: float | None, line: int | None) -> dict[str, Any]:
+def _record(result: N2kDecoded, t_s: float | None, line: int | None, decoder: N2kDecoder) -> dict[str, Any]:
     source = n2k_source_name(result.source_address)
     pgn = result.pgn if result.pgn >= 0 else None
+    name = decoder.name_of(result.source_address)
+    device = None if name is None else f"{name:016x}"  # the NAME its address was claimed with (60928)
     if isinstance(result.item, Rejected):
-        return rejected_record(source, result.item, binary=True, pgn=pgn, t_s=t_s, line=line)
-    return message_record(source, result.item, pgn=pgn, t_s=t_s, line=line)
+        return rejected_record(source, result.item, binary=True, pgn=pgn, t_s=t_s, line=line, name=device)
+    return message_record(source, result.item, pgn=pgn, t_s=t_s, line=line, name=device)
 
 
 def decode_nmea2000_log(source: LogSource, stats: dict[str, Any] | None = None,
@@ -80,10 +83,10 @@ def decode_nmea2000_log(source: LogSource, stats: dict[str, Any] | None = None,
         else:
             results = decoder.decode_frame(item.can_id, item.data, clock)
         for result in results:
-            yield _record(result, item.t_s, item.line)
+            yield _record(result, item.t_s, item.line, decoder)
         counts.update(decoder.counters)
     for result in decoder.expire(math.inf):  # fast packets still incomplete at the end of the capture
-        yield _record(result, None, None)
+        yield _record(result, None, None, decoder)
     counts.update(decoder.counters)
 
 

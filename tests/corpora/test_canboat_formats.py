@@ -153,8 +153,9 @@ def _angle_close(ours_rad: float, theirs_deg: float | None, tolerance_deg: float
     return theirs_deg is not None and abs(math.remainder(math.degrees(ours_rad) - theirs_deg, 360.0)) <= tolerance_deg
 
 
-def agrees(record: dict[str, Any], theirs: dict[str, Any]) -> bool:
-    """Our measurement equals canboat's fields of the same message, within canboat's printed resolution."""
+def agrees(record: dict[str, Any], theirs: dict[str, Any], bus_variation: float | None = None) -> bool:
+    """Our measurement equals canboat's fields of the same message, within canboat's printed resolution
+    (``bus_variation`` [deg]: the 127258 variation canboat decoded last, for a magnetic heading without one)."""
     kind = record["kind"]
     if kind == "position":
         return (abs(record["lat_deg"] - theirs["Latitude"]) <= 1.5e-7
@@ -162,7 +163,8 @@ def agrees(record: dict[str, Any], theirs: dict[str, Any]) -> bool:
     if kind == "heading":  # true; from a magnetic one: sensor + deviation + variation
         heading = theirs["Heading"]
         if theirs.get("Reference.name") == "Magnetic":
-            heading += (theirs.get("Deviation") or 0.0) + theirs["Variation"]
+            variation = theirs["Variation"] if theirs.get("Variation") is not None else bus_variation
+            heading += (theirs.get("Deviation") or 0.0) + variation
         return _angle_close(record["heading_rad"], heading, 0.06 * 3)
     if kind == "rate_of_turn":
         return abs(math.degrees(record["rate_radps"]) - theirs["Rate"]) <= 1e-5
@@ -186,6 +188,8 @@ def agrees(record: dict[str, Any], theirs: dict[str, Any]) -> bool:
 ])
 def test_measurements_equal_canboats_decode(name: str, decode: str, reader: Any, minimum: int) -> None:
     theirs = reader(decode)
+    variations = sorted((k[0], v["Variation"]) for k, v in theirs.items()
+                        if k[1] == 127258 and v.get("Variation") is not None)
     compared = 0
     for record in records(name):
         if "kind" not in record:
@@ -194,15 +198,20 @@ def test_measurements_equal_canboats_decode(name: str, decode: str, reader: Any,
         if key not in theirs:  # a fast packet: canboat stamps it with its first frame, we with its last
             key = min((k for k in theirs if k[1:] == key[1:] and 0 <= key[0] - k[0] <= 200),
                       key=lambda k: key[0] - k[0])
-        assert agrees(record, theirs[key]), (record, theirs[key])
+        bus = [variation for ms, variation in variations if ms <= key[0]]
+        assert agrees(record, theirs[key], bus[-1] if bus else None), (record, theirs[key])
         compared += 1
     print(f"\n{name}: {compared} measurements equal canboat's decode")
     assert compared >= minimum
 
 
 def test_every_message_canboat_decodes_and_we_drop_has_a_reason() -> None:
-    """YDWG capture: a 127250/129025/127251 with values in canboat's decode is ours too, or rejected for a reason."""
+    """YDWG capture: a 127250/129025/127251 with values in canboat's decode is ours too, or rejected for a reason.
+
+    Its compass sends magnetic headings without variation; two other devices send 127258 (-15.1°) from
+    the first second on: the headings before the first of them are rejected, the rest are true headings."""
     theirs = canboat_text("merrimac-ydwg-2020.analyzer.txt")
+    first_variation_ms = min(k[0] for k in theirs if k[1] == 127258)
     ours = {(round(r["t_s"] * 1000) % 86_400_000, r["pgn"], int(r["source"].split(":")[1])): r
             for r in records("merrimac-ydwg-2020.raw") if r.get("pgn") in (127250, 129025, 127251) and "t_s" in r}
     outcomes: Counter[str] = Counter()
@@ -214,6 +223,8 @@ def test_every_message_canboat_decodes_and_we_drop_has_a_reason() -> None:
         outcomes[record.get("kind") or record["rejected"]] += 1
         if record.get("rejected") == "magnetic_heading":
             assert fields["Reference.name"] == "Magnetic" and fields.get("Variation") is None
+            assert key[0] < first_variation_ms
     print(f"\ncanboat's usable 127250/129025/127251, ours: {dict(outcomes)}")
     assert set(outcomes) <= {"heading", "position", "rate_of_turn", "magnetic_heading", "invalid_fix"}
-    assert outcomes["rate_of_turn"] == 51
+    assert outcomes["rate_of_turn"] == 51 and outcomes["heading"] + outcomes["magnetic_heading"] == 51
+    assert outcomes["heading"] >= 40
