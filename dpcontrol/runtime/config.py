@@ -40,8 +40,10 @@ VESSEL_ID_PATTERN = re.compile(r"^[A-Za-z0-9_\-]{1,64}$")
 class TransportConfig:
     """One physical input: a serial port, a CAN bus or a MAVLink link.
 
-    ``settings`` holds the protocol's own keys: nmea0183 ``port, baud, max_sentence_chars``; nmea2000 ``interface,
-    channel`` (+ ``bitrate`` etc. passed to python-can); mavlink ``url`` (+ ``signing_key_hex``).
+    ``settings`` holds the protocol's own keys: nmea0183 ``port, baud, max_sentence_chars``; nmea2000
+    ``interface, channel`` (+ ``bitrate`` etc. passed to python-can; or a gateway: ``interface`` ydwg_tcp,
+    ydwg_udp, ngt1_serial with ``channel`` HOST:PORT or the serial device) and ``variation_deg``; mavlink
+    ``url`` (+ ``signing_key_hex``).
     """
 
     name: str
@@ -242,6 +244,9 @@ def _parse_transport(section: Section) -> TransportConfig:
         settings["max_sentence_chars"] = section.integer("max_sentence_chars", DEFAULT_MAX_SENTENCE_CHARS,
                                                          minimum=82, maximum=4096)
     elif protocol == "nmea2000":
+        # (imported here: the gateways bring pyserial and python-can, which other configurations never need)
+        from interfaces.nmea2000.gateways import GATEWAY_KINDS, GatewayConfig  # noqa: PLC0415
+
         settings["interface"] = section.string("interface")
         channel = section.raw("channel", None)
         if channel is not None and not isinstance(channel, (str, int)):
@@ -249,7 +254,18 @@ def _parse_transport(section: Section) -> TransportConfig:
         settings["channel"] = channel
         options = section.section("options")
         settings["options"] = dict(options.data)
-        options._read.update(options.data)  # passed through to python-can
+        options._read.update(options.data)  # passed through to python-can (or the gateway)
+        if settings["interface"] in GATEWAY_KINDS:  # a gateway instead of a CAN card: checked now, not at start
+            try:
+                GatewayConfig(settings["interface"], "" if channel is None else str(channel), settings["options"])
+            except ValueError as error:
+                raise ConfigError(f"{section.path}.channel", str(error), channel) from None
+        # magnetic variation for magnetic headings when the bus sends none (127258)
+        variation = section.raw("variation_deg", None)
+        if variation is not None and (isinstance(variation, bool) or not isinstance(variation, int | float)
+                                      or not -180.0 <= variation <= 180.0):
+            raise ConfigError(f"{section.path}.variation_deg", "degrees in [-180, 180], east positive", variation)
+        settings["variation_deg"] = variation
     else:
         settings["url"] = section.string("url")
         key_hex = section.raw("signing_key_hex", None)

@@ -172,12 +172,20 @@ class InputPump:
                                       LinkStatus(status.t_s, n, status.connected, status.detail)))
             return reader.start()
         if transport.protocol == "nmea2000":
+            from interfaces.nmea2000.codec import N2kDecoder  # noqa: PLC0415
+            from interfaces.nmea2000.gateways import GATEWAY_KINDS, GatewayConfig, N2kGatewayReader  # noqa: PLC0415
             from interfaces.nmea2000.transport import CanBusConfig, N2kCanReader  # noqa: PLC0415
 
             channel = "" if s["channel"] is None else str(s["channel"])
+            variation = s.get("variation_deg")
+            decoder = N2kDecoder(variation_rad=None if variation is None else math.radians(variation))
+            if s["interface"] in GATEWAY_KINDS:
+                return N2kGatewayReader(GatewayConfig(s["interface"], channel, dict(s.get("options") or {})),
+                                        lambda event, n=name: self._n2k_event(n, event), clock=self.clock,
+                                        decoder=decoder, deliver_raw=self.recorder is not None).start()
             bus = CanBusConfig(s["interface"], channel or "can0", dict(s.get("options") or {}))
             return N2kCanReader(bus, lambda event, n=name: self._n2k_event(n, event), clock=self.clock,
-                                deliver_raw=self.recorder is not None).start()
+                                decoder=decoder, deliver_raw=self.recorder is not None).start()
         from interfaces.mavlink.codec import parse_signing_key  # noqa: PLC0415
         from interfaces.mavlink.transport import MavlinkUdpReader  # noqa: PLC0415
 

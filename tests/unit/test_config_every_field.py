@@ -55,7 +55,7 @@ SENSOR_FIELDS = {  # (sensor index, field) → bad value
 }
 TRANSPORT_FIELDS = {
     (0, "name"): 5, (0, "protocol"): 183, (0, "port"): 0, (0, "baud"): "fast", (0, "max_sentence_chars"): "long",
-    (1, "interface"): 1, (1, "channel"): [0], (1, "options"): "fd",
+    (1, "interface"): 1, (1, "channel"): [0], (1, "options"): "fd", (1, "variation_deg"): "east",
     (2, "url"): 14550, (2, "heartbeat_timeout_s"): "long", (2, "signing_key_hex"): "secret",
 }
 THRUSTER_FIELDS = {
