@@ -13,6 +13,7 @@ comparison, with plots.
 from __future__ import annotations
 
 import json
+import math
 from collections import defaultdict
 from pathlib import Path
 from typing import Any
@@ -29,7 +30,7 @@ from dpcontrol.runtime.thrusters import ThrusterFeedback
 from interfaces.mavlink.codec import MavlinkDecoder, parse_signing_key
 from interfaces.messages import Measurement, Rejected
 from interfaces.nmea0183 import Nmea0183Decoder
-from interfaces.nmea2000.codec import N2kDecoder
+from interfaces.nmea2000.codec import N2kDecoder, parse_can_id
 
 
 class RawDecoders:
@@ -38,8 +39,11 @@ class RawDecoders:
     def __init__(self, config: DaemonConfig) -> None:
         self.router = SensorRouter(config.routes, config.transports)
         self.protocol = {t.name: t.protocol for t in config.transports}
-        self._nmea = {t.name: Nmea0183Decoder() for t in config.transports if t.protocol == "nmea0183"}
-        self._n2k = {t.name: N2kDecoder() for t in config.transports if t.protocol == "nmea2000"}
+        self._nmea = {t.name: Nmea0183Decoder(t.settings["max_sentence_chars"])
+                      for t in config.transports if t.protocol == "nmea0183"}
+        self._n2k = {t.name: N2kDecoder(variation_rad=None if t.settings.get("variation_deg") is None
+                                        else math.radians(t.settings["variation_deg"]))
+                     for t in config.transports if t.protocol == "nmea2000"}
         self._mav = {}
         for t in config.transports:
             if t.protocol == "mavlink":
@@ -60,9 +64,16 @@ class RawDecoders:
         elif protocol == "nmea2000":
             can_id = payload.get("can_id")
             if isinstance(can_id, int):
-                for result in self._n2k[transport].decode_frame(can_id, data, t_s):
+                decoder = self._n2k[transport]
+                if len(data) > 8:  # a whole message from a gateway (NGT-1): as the daemon decoded it
+                    _prio, pgn, source, _destination = parse_can_id(can_id)
+                    results = decoder.decode_message(pgn, source, data, t_s)
+                else:
+                    results = decoder.decode_frame(can_id, data, t_s)
+                for result in results:
                     if not isinstance(result.item, Rejected):
-                        sensor = router.nmea2000(transport, result.source_address, result.item)
+                        sensor = router.nmea2000(transport, result.source_address, result.item,
+                                                 decoder.name_of(result.source_address))
                         if sensor is not None:
                             out.append(Measurement(t_s, sensor, result.item))
         elif protocol == "mavlink":

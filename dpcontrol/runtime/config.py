@@ -61,6 +61,7 @@ class SensorRoute:
     sentences: tuple[str, ...] = ()  # NMEA 0183 sentence types used (default per kind)
     source_address: int | None = None  # NMEA 2000 source address filter
     system_id: int | None = None  # MAVLink system ID filter
+    source_name: int | None = None  # NMEA 2000 NAME filter (the 64-bit NAME of its 60928 address claim)
 
 
 ESTIMATOR_KINDS = ("mmae", "kf", "rpem", "raw", "kalman_bucy", "heading_kf")
@@ -309,6 +310,14 @@ def _parse_route(section: Section, transports: Mapping[str, TransportConfig]) ->
             raise ConfigError(f"{section.path}.source_address", "source_address only on an nmea2000 transport",
                               protocol)
         source_address = section.integer("source_address", minimum=0, maximum=253)
+    source_name = None
+    if section.has("source_name"):
+        text = section.raw("source_name", None)
+        if protocol != "nmea2000":
+            raise ConfigError(f"{section.path}.source_name", "source_name only on an nmea2000 transport", protocol)
+        if not isinstance(text, str) or not re.fullmatch(r"(0x)?[0-9a-fA-F]{16}", text):
+            raise ConfigError(f"{section.path}.source_name", "the device's NAME: 16 hexadecimal digits", text)
+        source_name = int(text, 16)
     system_id = None
     if section.has("system_id"):
         if protocol != "mavlink":
@@ -316,7 +325,7 @@ def _parse_route(section: Section, transports: Mapping[str, TransportConfig]) ->
         system_id = section.integer("system_id", minimum=1, maximum=255)
     section.finish()
     return SensorRoute(SensorConfig(name, kind, rate, sigma, lever), transport, talker, sentences, source_address,
-                       system_id)
+                       system_id, source_name)
 
 
 def _parse_hub(section: Section) -> HubConfig:
