@@ -482,3 +482,75 @@ class Ngt1Writer:
         if packets:
             self._write(b"".join(packets))
         return len(packets)
+
+
+class GatewayTwin:
+    """The gateway a :class:`GatewayConfig` describes, played by the emulator: the interface of
+    :class:`~interfaces.nmea2000.transport.N2kCanWriter` (``open``, ``send(frames) -> int``, ``counters``,
+    ``close``), so a HIL link sends its sensors' frames through a gateway as through a CAN bus.
+
+    ``ydwg_tcp``: a YD RAW server listening at the channel's HOST:PORT (the daemon connects to it);
+    ``ydwg_udp``: datagrams to HOST:PORT (where the daemon receives); ``ngt1_serial``: a pseudo-terminal
+    whose slave is linked at the channel's path (the daemon opens it), written without blocking (frames
+    the daemon does not read in time are dropped and counted, as a real gateway's buffer overflows).
+    """
+
+    def __init__(self, gateway: GatewayConfig, *, clock: Clock = time.time) -> None:
+        self.gateway = gateway
+        self.clock = clock
+        self.counters: Counter[str] = Counter()
+        self._server: YdwgRawServer | None = None
+        self._pty: Any = None
+        self._ngt1: Ngt1Writer | None = None
+
+    @property
+    def name(self) -> str:
+        return self.gateway.name
+
+    def open(self) -> GatewayTwin:
+        kind = self.gateway.kind
+        if kind == "ngt1_serial":
+            import fcntl  # noqa: PLC0415  (POSIX only, like the pty)
+            import os  # noqa: PLC0415
+
+            from interfaces.nmea0183.transport import PtyPair  # noqa: PLC0415
+
+            self._pty = PtyPair(link_path=self.gateway.channel)
+            flags = fcntl.fcntl(self._pty.master_fd, fcntl.F_GETFL)
+            fcntl.fcntl(self._pty.master_fd, fcntl.F_SETFL, flags | os.O_NONBLOCK)
+            self._ngt1 = Ngt1Writer(self._write_pty, clock=self.clock)
+        else:
+            host, port = self.gateway.endpoint()
+            self._server = YdwgRawServer("tcp" if kind == "ydwg_tcp" else "udp", host, port, clock=self.clock)
+        return self
+
+    def _write_pty(self, data: bytes) -> None:
+        import os  # noqa: PLC0415
+
+        try:
+            written = os.write(self._pty.master_fd, data)
+        except BlockingIOError:
+            written = 0
+        if written < len(data):
+            self.counters["bytes_dropped"] += len(data) - written
+
+    def send(self, frames: Iterable[Frame]) -> int:
+        """Send CAN frames through the gateway; returns how many were taken (all of them: a gateway
+        accepts what the bus carries; what its client does not read is its client's loss)."""
+        frames = list(frames)
+        if self._server is not None:
+            self._server.send(frames)
+        elif self._ngt1 is not None:
+            self.counters["packets_sent"] += self._ngt1.send(frames)
+        else:
+            return 0
+        self.counters["frames_sent"] += len(frames)
+        return len(frames)
+
+    def close(self) -> None:
+        if self._server is not None:
+            self._server.close()
+            self._server = None
+        if self._pty is not None:
+            self._pty.close()
+            self._pty = None

@@ -167,3 +167,33 @@ def test_the_daemon_reads_a_gateway_configured_like_a_can_bus() -> None:
         config["transports"][0]["channel"] = "no-port"
         with pytest.raises(ConfigError, match="channel"):
             parse_config(config)
+
+
+@pytest.mark.parametrize("kind", ["ydwg_tcp", "ydwg_udp", "ngt1_serial"])
+def test_the_emulators_gateway_twin_feeds_the_daemons_reader(kind: str, tmp_path) -> None:
+    """GatewayTwin (what sim-plant's NMEA 2000 link uses for a gateway interface) against the reader."""
+    from interfaces.nmea2000.gateways import GatewayTwin  # noqa: PLC0415
+    from sim_plant.hil_config import parse_controller_wiring  # noqa: PLC0415
+
+    channel = str(tmp_path / "ttyNGT1") if kind == "ngt1_serial" else f"127.0.0.1:{free_udp_port()}"
+    if kind == "ydwg_tcp":
+        with socket.create_server(("127.0.0.1", 0)) as probe:
+            channel = f"127.0.0.1:{probe.getsockname()[1]}"
+    wiring = parse_controller_wiring({
+        "vessel_id": "gw",
+        "transports": [{"name": "n2k", "protocol": "nmea2000", "interface": kind, "channel": channel}],
+        "sensors": [{"name": "gnss1", "kind": "position", "transport": "n2k"}]})
+    assert wiring.transports["n2k"].interface == kind
+    gateway = GatewayConfig(kind, channel)
+    events: queue.Queue = queue.Queue()
+    twin = GatewayTwin(gateway).open()
+    try:
+        with N2kGatewayReader(gateway, events.put) as reader:
+            assert reader.wait_connected(WAIT_S)
+            deadline = time.monotonic() + WAIT_S
+            while kind == "ydwg_tcp" and twin._server.clients < 1 and time.monotonic() < deadline:
+                time.sleep(0.01)  # the reader's connection is accepted by the twin's thread
+            assert twin.send(traffic()) == 9
+            check_measurements(collect(events, 3))
+    finally:
+        twin.close()
