@@ -238,13 +238,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_bench)
 
     p = sub.add_parser("decode", help="decode a captured log to JSON lines")
-    p.add_argument("protocol", help="nmea0183 (text) | nmea2000 (candump) | mavlink (tlog)")
+    p.add_argument("protocol", help="nmea0183 (text) | nmea2000 (candump, Actisense, PLAIN/FAST, YDWG raw, iKonvert, "
+                                    "PCAN-View .trc, pcap/pcapng: detected) | mavlink (tlog)")
     p.add_argument("file")
     p.add_argument("--stats", action="store_true", help="print counters to stderr at the end")
     p.add_argument("--max-sentence-chars", type=_positive_int, default=None,
                    help="nmea0183: longest sentence accepted (default 128, above NMEA's 82 for high-precision GNSS)")
     p.add_argument("--format", dest="log_format", default=None,
-                   help="nmea2000: the log's format instead of detecting it (see docs/nmea2000_logs.md)")
+                   help="nmea2000: the log's format instead of detecting it: candump, actisense, plain (= fast), "
+                        "ydwg, ikonvert, trc, pcap")
     p.set_defaults(func=_cmd_decode)
 
     p = sub.add_parser("replay", help="replay a recording through the control step and compare")
