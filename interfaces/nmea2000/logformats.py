@@ -24,7 +24,8 @@ What is read with a library, and what by hand:
   own line parser (``nmea2000._canboat.parse_line``, the parser of canboat's ``analyzer``), which checks
   hex digits, lengths and the base64 of iKonvert. It does not return the capture time: the time field
   of each format is read here (a few characters in a fixed place);
-* ``trc`` is read by python-can's ``TRCReader`` (PCAN-View trace versions 1.0 to 2.1);
+* ``trc`` is read by python-can's ``TRCReader`` (PCAN-View trace versions 1.0 to 2.1; the lines it
+  skips, which it only logs, are reported like the others);
 * ``pcap``/``pcapng`` containers are read by dpkt; the 16-byte SocketCAN header inside each packet
   (identifier with its flags, length, data) is unpacked here with :mod:`struct` — dpkt has no
   SocketCAN layer and the layout is fixed by Linux's ``struct can_frame``.
@@ -37,6 +38,7 @@ from __future__ import annotations
 
 import calendar
 import io
+import logging
 import re
 import struct
 from collections.abc import Callable, Iterator
@@ -223,21 +225,49 @@ def read_candump_format(data: bytes) -> Iterator[LogItem]:
             yield LogFrame(frame.t_s, priority, pgn, source, destination, frame.data, False, number)
 
 
+class _Skipped(logging.Handler):
+    """Collects what python-can's TRCReader logs about a line it skips (it yields nothing for it)."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.INFO)
+        self.skipped: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        message = record.getMessage()
+        if "Failed to parse" in message or "Unsupported type" in message:
+            self.skipped.append(message)
+
+
 def read_trc(data: bytes) -> Iterator[LogItem]:
-    """Frames of a PEAK PCAN-View trace (python-can's ``TRCReader``); only 29-bit data frames are NMEA 2000."""
+    """Frames of a PEAK PCAN-View trace (python-can's ``TRCReader``); only 29-bit data frames are NMEA 2000.
+
+    A line python-can skips (it only logs it) is reported as a :class:`LogError` too, not lost.
+    """
     from can.io.trc import TRCReader  # noqa: PLC0415  (python-can's log readers load on first use)
 
+    trc_logger = logging.getLogger("can.io.trc")
+    skipped = _Skipped()
+    trc_logger.addHandler(skipped)
+    propagate, trc_logger.propagate = trc_logger.propagate, False  # reported here, not printed as warnings
+    number = 0
     try:
         reader = TRCReader(io.StringIO(data.decode("ascii", errors="replace")))
         for number, message in enumerate(reader, start=1):
+            while skipped.skipped:
+                yield LogError(0, f"PCAN-View line skipped by python-can: {skipped.skipped.pop(0)}", "")
             if not message.is_extended_id or message.is_remote_frame or message.is_error_frame:
                 yield LogError(number, "not an extended (29-bit) data frame", f"{message.arbitration_id:X}")
                 continue
             priority, pgn, source, destination = canboat.can_id_decompose(message.arbitration_id & 0x1FFFFFFF)
             yield LogFrame(float(message.timestamp), priority, pgn, source, destination, bytes(message.data)[:8],
                            False, number)
+        while skipped.skipped:
+            yield LogError(0, f"PCAN-View line skipped by python-can: {skipped.skipped.pop(0)}", "")
     except Exception as error:  # python-can stops at a line it cannot read: say where, keep what was read
-        yield LogError(0, f"PCAN-View trace unreadable from here on: {type(error).__name__}: {error}", "")
+        yield LogError(0, f"PCAN-View trace unreadable after message {number}: {type(error).__name__}: {error}", "")
+    finally:
+        trc_logger.removeHandler(skipped)
+        trc_logger.propagate = propagate
 
 
 _PCAP_MAGICS = (b"\xd4\xc3\xb2\xa1", b"\xa1\xb2\xc3\xd4", b"\x4d\x3c\xb2\xa1", b"\xa1\xb2\x3c\x4d")

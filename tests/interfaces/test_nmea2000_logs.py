@@ -162,3 +162,14 @@ def test_the_command_line_detects_or_is_told_the_format(capsys: pytest.CaptureFi
     assert main(["decode", "nmea2000", path, "--format", "seatalk"]) == 2
     assert "known:" in capsys.readouterr().err
     assert main(["decode", "nmea0183", path, "--format", "ydwg"]) == 2
+
+
+def test_a_trace_line_python_can_skips_is_reported_not_lost(caplog: pytest.LogCaptureFixture) -> None:
+    trace = (b";$FILEVERSION=1.1\n;$STARTTIME=42176.7577227546\n"
+             b"     1)        48.6  Rx     09F11201  8  FF 50 7A FF 7F FF 7F FD\n  garbage\n"
+             b"     2)        49.2  Rx     09F10D01  8  00 F8 FF 7F 5F B8 FF FF\n")
+    stats: dict[str, object] = {}
+    records = list(decode_nmea2000_log(trace, stats))
+    assert stats["format"] == "trc" and stats["frames_read"] == 2 and stats["garbage_lines"] == 1
+    assert [r.get("rejected") for r in records] == ["magnetic_heading", "garbage"]
+    assert "garbage" in records[1]["detail"] and not caplog.records  # reported here, not as a log warning
