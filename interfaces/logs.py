@@ -55,8 +55,38 @@ _CAPTURE_TIME_RE = re.compile(
     rb"(\d{4})-(\d{2})-(\d{2})[T ](\d{2}):(\d{2}):(\d{2}(?:\.\d+)?)(Z|[+-]\d{2}:?\d{2})?[ \t]*[,;]?[ \t]*(?=[$!])")
 
 
-def capture_time_prefix(line: bytes) -> tuple[float, int] | None:
+# An NMEA 4.10 TAG block before the sentence: \c:1577836800,s:GPS1*hh\ ('c' the UNIX time in seconds, or in
+# milliseconds as some AIS loggers write it); its own checksum covers the characters between '\' and '*'.
+_TAG_BLOCK_RE = re.compile(rb"\\([\x20-\x5b\x5d-\x7e]*?)\*([0-9A-Fa-f]{2})\\(?=[$!])")
+_TAG_TIME_RE = re.compile(rb"(?:^|,)c:(\d{1,13})(?:,|$)")
+_MILLISECONDS_FROM = 10**11  # a 'c' above this is in milliseconds (1e11 s is the year 5138)
+
+
+def _tag_block(line: bytes) -> tuple[float | None, int] | None:
+    """A valid TAG block at the start of ``line``: its capture time (``None`` without a ``c`` field) and where
+    the sentence starts; ``None`` when there is none or its checksum does not match."""
+    match = _TAG_BLOCK_RE.match(line)
+    if match is None:
+        return None
+    content = match.group(1)
+    checksum = 0
+    for byte in content:
+        checksum ^= byte
+    if checksum != int(match.group(2), 16):
+        return None
+    time_field = _TAG_TIME_RE.search(content)
+    if time_field is None:
+        return None, match.end()
+    value = int(time_field.group(1))
+    return (value / 1000.0 if value > _MILLISECONDS_FROM else float(value)), match.end()
+
+
+def capture_time_prefix(line: bytes) -> tuple[float | None, int] | None:
     """The capture time a logger wrote before an NMEA sentence, and where the sentence starts.
+
+    Two forms: an ISO 8601 date-time (below), or an NMEA 4.10 TAG block (``\\c:1577836800*hh\\``, the
+    time in UNIX seconds or milliseconds; a block without ``c`` gives no time, a block whose checksum
+    does not match is not recognised).
 
     Parameters
     ----------
@@ -66,9 +96,12 @@ def capture_time_prefix(line: bytes) -> tuple[float, int] | None:
     Returns
     -------
     (t_s, start) or None
-        UNIX time [s] of the prefix and the index of the sentence's ``$``/``!``; ``None`` when the line
-        does not start with an ISO 8601 date-time followed by a sentence (or the date-time is impossible).
+        UNIX time [s] of the prefix (``None`` for a TAG block without time) and the index of the sentence's
+        ``$``/``!``; ``None`` when the line does not start with a recognised prefix followed by a sentence
+        (or the date-time is impossible).
     """
+    if line[:1] == b"\\":
+        return _tag_block(line)
     match = _CAPTURE_TIME_RE.match(line)
     if match is None:
         return None

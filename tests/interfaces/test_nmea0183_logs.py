@@ -110,3 +110,20 @@ def test_a_real_log_with_binary_and_comments() -> None:
     assert stats["comments"] > 0 and stats["rejected.garbage"] > 0  # UBX binary between the sentences
     assert sum(1 for r in records if "rejected" in r) == stats["rejected"]
     assert len(records) - stats["rejected"] == stats["messages"]
+
+
+def tag_block(content: str) -> bytes:
+    checksum = 0
+    for byte in content.encode("ascii"):
+        checksum ^= byte
+    return b"\\" + content.encode("ascii") + b"*%02X\\" % checksum
+
+
+def test_an_nmea4_tag_block_gives_the_capture_time() -> None:
+    hdt = encode_ths(Heading(1.0))
+    log = (tag_block("c:1406851200,s:GYRO1") + hdt + tag_block("c:1406851200183") + hdt
+           + tag_block("s:GYRO1") + hdt + b"\\c:1406851200*00\\" + hdt)
+    records = list(decode_nmea0183_log(log))
+    assert [r.get("t_s") for r in records[:3]] == [1406851200.0, pytest.approx(1406851200.183), None]
+    assert [r.get("kind") for r in records[:3]] == ["heading"] * 3
+    assert records[3]["rejected"] == "garbage" and records[4]["kind"] == "heading"  # a bad block's checksum
