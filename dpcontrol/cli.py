@@ -117,10 +117,18 @@ def _cmd_decode(args: argparse.Namespace) -> int:
         print(f"dpcontrol decode: unknown protocol {args.protocol!r} (one of {', '.join(LOG_DECODERS)})",
               file=sys.stderr)
         return 2
+    options: dict[str, object] = {}
+    for option, key, protocol in (("--max-sentence-chars", "max_sentence_chars", "nmea0183"),
+                                  ("--format", "log_format", "nmea2000")):
+        if getattr(args, key) is not None:
+            if args.protocol != protocol:
+                print(f"dpcontrol decode: {option} is an option of {protocol}, not {args.protocol}", file=sys.stderr)
+                return 2
+            options[key] = getattr(args, key)
     try:
         stats: dict[str, int] = {}
         out = sys.stdout
-        for record in decode_log(args.protocol, args.file, stats):
+        for record in decode_log(args.protocol, args.file, stats, **options):
             out.write(to_json_line(record) + "\n")
     except BrokenPipeError:  # e.g. piped into head: not an error
         sys.stderr.close()
@@ -128,6 +136,9 @@ def _cmd_decode(args: argparse.Namespace) -> int:
     except OSError as error:
         print(f"dpcontrol decode: {error}", file=sys.stderr)
         return 2 if isinstance(error, UNREADABLE_INPUT) else 1
+    except ValueError as error:  # an option the log contradicts (an unknown --format ...)
+        print(f"dpcontrol decode: {error}", file=sys.stderr)
+        return 2
     if args.stats:
         print(json.dumps(stats, sort_keys=True), file=sys.stderr)
     return 0
@@ -244,9 +255,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_bench)
 
     p = sub.add_parser("decode", help="decode a captured log to JSON lines")
-    p.add_argument("protocol", help="nmea0183 (text) | nmea2000 (candump) | mavlink (tlog)")
+    p.add_argument("protocol", help="nmea0183 (text) | nmea2000 (candump, Actisense, PLAIN/FAST, YDWG raw, iKonvert, "
+                                    "PCAN-View .trc, pcap/pcapng: detected) | mavlink (tlog)")
     p.add_argument("file")
     p.add_argument("--stats", action="store_true", help="print counters to stderr at the end")
+    p.add_argument("--max-sentence-chars", type=_positive_int, default=None,
+                   help="nmea0183: longest sentence accepted (default 128, above NMEA's 82 for high-precision GNSS)")
+    p.add_argument("--format", dest="log_format", default=None,
+                   help="nmea2000: the log's format instead of detecting it: candump, actisense, plain (= fast), "
+                        "ydwg, ikonvert, trc, pcap")
     p.set_defaults(func=_cmd_decode)
 
     p = sub.add_parser("replay", help="replay a recording through the control step and compare")

@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import enum
 import json
+import math
 import os
 from pathlib import Path
 
@@ -98,5 +99,14 @@ def rejected_record(source: str, rejected: Rejected, *, binary: bool = False, **
 
 
 def to_json_line(record: dict[str, object]) -> str:
-    """One record as a compact JSON line (no NaN: missing values are ``null``)."""
-    return json.dumps(record, separators=(",", ":"), allow_nan=False)
+    """One record as a compact JSON line (strict JSON: a missing value is ``null``, never ``NaN``).
+
+    The decoders emit finite values only (every message passes :func:`interfaces.limits.violation`); a
+    non-finite number that reached a record anyway (a context value) is written ``null`` rather than
+    ending the output with an error.
+    """
+    try:
+        return json.dumps(record, separators=(",", ":"), allow_nan=False)
+    except ValueError:  # a NaN or ±inf: the only value json refuses in these records
+        return json.dumps({key: None if isinstance(value, float) and not math.isfinite(value) else value
+                           for key, value in record.items()}, separators=(",", ":"), allow_nan=False)

@@ -216,6 +216,14 @@ def _transport(sec: Section) -> Transport:
             raise ConfigError(join(sec.path, "channel"), "a python-can channel (string or integer)", channel)
         options = sec.section("options")
         transport = CanTransport(name, interface, str(channel), dict(options.data))
+        # (imported here: the gateways bring pyserial and python-can, which sim-plant --help never needs)
+        from interfaces.nmea2000.gateways import GATEWAY_KINDS, GatewayConfig  # noqa: PLC0415
+
+        if interface in GATEWAY_KINDS:  # a gateway the emulator plays (YD RAW server, NGT-1 on a pty)
+            try:
+                GatewayConfig(interface, str(channel), dict(options.data))
+            except ValueError as error:
+                raise ConfigError(join(sec.path, "channel"), str(error), channel) from None
         if interface == "remote":
             try:
                 transport.remote_address()

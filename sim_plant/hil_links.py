@@ -61,6 +61,7 @@ from interfaces.messages import PositionFix, SensorMessage
 from interfaces.nmea0183 import (
     PtyPair,
 )
+from interfaces.nmea2000.gateways import GATEWAY_KINDS, GatewayConfig, GatewayTwin
 from interfaces.nmea2000.transport import CanBusConfig, N2kCanWriter, RemoteServerHandle, start_remote_server
 from sim_plant.encoding import DATE_DAYS_SINCE_1970, MavlinkSensorEncoder, N2kSensorEncoder, NmeaSensorEncoder
 from sim_plant.hil_config import (
@@ -427,8 +428,13 @@ class N2kLink(Link):
             except (RuntimeError, OSError) as error:
                 raise HilLinkError(f"transport {transport.name}: cannot start the python-can-remote server on "
                                    f"{host}:{port}: {error}") from error
-        self.bus = CanBusConfig(transport.interface, transport.channel, dict(transport.options))
-        self.writer = N2kCanWriter(self.bus)
+        self.bus: Any
+        if transport.interface in GATEWAY_KINDS:  # the emulator plays the gateway (YD RAW server, NGT-1 pty)
+            self.bus = GatewayConfig(transport.interface, transport.channel, dict(transport.options))
+            self.writer = GatewayTwin(self.bus)
+        else:
+            self.bus = CanBusConfig(transport.interface, transport.channel, dict(transport.options))
+            self.writer = N2kCanWriter(self.bus)
         try:
             self.writer.open()
         except Exception as error:  # python-can raises many types; the writer retries by itself later

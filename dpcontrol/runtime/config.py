@@ -24,6 +24,7 @@ from dpcontrol.estimation import WaveFilterConfig
 from dpcontrol.guidance import ReferenceModelConfig, reference_config_from_mapping
 from dpcontrol.models.vessels import VesselData, vessel_from_config
 from dpcontrol.runtime.hub import HubConfig, SensorConfig, SensorKind
+from interfaces.nmea0183.codec import DEFAULT_MAX_SENTENCE_CHARS
 from interfaces.recorder import RecorderSettings
 from interfaces.zenoh.config import ZenohConfig
 
@@ -37,8 +38,10 @@ VESSEL_ID_PATTERN = re.compile(r"^[A-Za-z0-9_\-]{1,64}$")
 class TransportConfig:
     """One physical input: a serial port, a CAN bus or a MAVLink link.
 
-    ``settings`` holds the protocol's own keys: nmea0183 ``port, baud``; nmea2000 ``interface,
-    channel`` (+ ``bitrate`` etc. passed to python-can); mavlink ``url`` (+ ``signing_key_hex``).
+    ``settings`` holds the protocol's own keys: nmea0183 ``port, baud, max_sentence_chars``; nmea2000
+    ``interface, channel`` (+ ``bitrate`` etc. passed to python-can; or a gateway: ``interface`` ydwg_tcp,
+    ydwg_udp, ngt1_serial with ``channel`` HOST:PORT or the serial device) and ``variation_deg``; mavlink
+    ``url`` (+ ``signing_key_hex``).
     """
 
     name: str
@@ -56,6 +59,7 @@ class SensorRoute:
     sentences: tuple[str, ...] = ()  # NMEA 0183 sentence types used (default per kind)
     source_address: int | None = None  # NMEA 2000 source address filter
     system_id: int | None = None  # MAVLink system ID filter
+    source_name: int | None = None  # NMEA 2000 NAME filter (the 64-bit NAME of its 60928 address claim)
 
 
 ESTIMATOR_KINDS = ("mmae", "kf", "rpem", "raw", "kalman_bucy", "heading_kf")
@@ -235,7 +239,13 @@ def _parse_transport(section: Section) -> TransportConfig:
     if protocol == "nmea0183":
         settings["port"] = section.string("port")
         settings["baud"] = section.integer("baud", 4800, minimum=300)
+        # longest sentence read; the default takes high-precision receivers (interfaces.nmea0183.codec)
+        settings["max_sentence_chars"] = section.integer("max_sentence_chars", DEFAULT_MAX_SENTENCE_CHARS,
+                                                         minimum=82, maximum=4096)
     elif protocol == "nmea2000":
+        # (imported here: the gateways bring pyserial and python-can, which other configurations never need)
+        from interfaces.nmea2000.gateways import GATEWAY_KINDS, GatewayConfig  # noqa: PLC0415
+
         settings["interface"] = section.string("interface")
         channel = section.raw("channel", None)
         if channel is not None and not isinstance(channel, (str, int)):
@@ -243,7 +253,18 @@ def _parse_transport(section: Section) -> TransportConfig:
         settings["channel"] = channel
         options = section.section("options")
         settings["options"] = dict(options.data)
-        options._read.update(options.data)  # passed through to python-can
+        options._read.update(options.data)  # passed through to python-can (or the gateway)
+        if settings["interface"] in GATEWAY_KINDS:  # a gateway instead of a CAN card: checked now, not at start
+            try:
+                GatewayConfig(settings["interface"], "" if channel is None else str(channel), settings["options"])
+            except ValueError as error:
+                raise ConfigError(f"{section.path}.channel", str(error), channel) from None
+        # magnetic variation for magnetic headings when the bus sends none (127258)
+        variation = section.raw("variation_deg", None)
+        if variation is not None and (isinstance(variation, bool) or not isinstance(variation, int | float)
+                                      or not -180.0 <= variation <= 180.0):
+            raise ConfigError(f"{section.path}.variation_deg", "degrees in [-180, 180], east positive", variation)
+        settings["variation_deg"] = variation
     else:
         settings["url"] = section.string("url")
         key_hex = section.raw("signing_key_hex", None)
@@ -277,7 +298,7 @@ def _parse_route(section: Section, transports: Mapping[str, TransportConfig]) ->
         if protocol != "nmea0183":
             raise ConfigError(f"{section.path}.sentences", "sentences only on an nmea0183 transport", protocol)
         sentences = tuple(s for _, s in section.items("sentences", min_items=1))
-        known = ("GGA", "GNS", "RMC", "GST", "HDT", "THS", "ROT")
+        known = ("GGA", "GNS", "RMC", "GLL", "GST", "HDT", "THS", "ROT")
         for where, value in section.items("sentences"):
             if value not in known:
                 raise ConfigError(where, "one of " + ", ".join(known), value)
@@ -287,6 +308,14 @@ def _parse_route(section: Section, transports: Mapping[str, TransportConfig]) ->
             raise ConfigError(f"{section.path}.source_address", "source_address only on an nmea2000 transport",
                               protocol)
         source_address = section.integer("source_address", minimum=0, maximum=253)
+    source_name = None
+    if section.has("source_name"):
+        text = section.raw("source_name", None)
+        if protocol != "nmea2000":
+            raise ConfigError(f"{section.path}.source_name", "source_name only on an nmea2000 transport", protocol)
+        if not isinstance(text, str) or not re.fullmatch(r"(0x)?[0-9a-fA-F]{16}", text):
+            raise ConfigError(f"{section.path}.source_name", "the device's NAME: 16 hexadecimal digits", text)
+        source_name = int(text, 16)
     system_id = None
     if section.has("system_id"):
         if protocol != "mavlink":
@@ -294,7 +323,7 @@ def _parse_route(section: Section, transports: Mapping[str, TransportConfig]) ->
         system_id = section.integer("system_id", minimum=1, maximum=255)
     section.finish()
     return SensorRoute(SensorConfig(name, kind, rate, sigma, lever), transport, talker, sentences, source_address,
-                       system_id)
+                       system_id, source_name)
 
 
 def _parse_hub(section: Section) -> HubConfig:

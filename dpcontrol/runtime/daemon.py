@@ -151,6 +151,7 @@ class InputPump:
                                   config.hub.error_rate_window_s)
         self._mav_pattern = re.compile(r"^mav:(\d+)/(\d+)/(.*)$")
         self._n2k_pattern = re.compile(r"^n2k:(\d+)$")
+        self._n2k_decoders: dict[str, Any] = {}  # transport → its N2kDecoder (the NAMEs of the addresses)
 
     # ---------------------------------------------------------------- readers
     def start(self) -> None:
@@ -168,17 +169,29 @@ class InputPump:
             from interfaces.nmea0183.transport import SerialReader  # noqa: PLC0415
 
             reader = SerialReader(s["port"], source=name, clock=self.clock, baudrate=s["baud"],
+                                  max_sentence_chars=s["max_sentence_chars"],
                                   on_line=lambda line, n=name: self._nmea_line(n, line),
                                   on_link=lambda status, n=name: self._queue.append(
                                       LinkStatus(status.t_s, n, status.connected, status.detail)))
             return reader.start()
         if transport.protocol == "nmea2000":
+            from interfaces.nmea2000.codec import N2kDecoder  # noqa: PLC0415
+            from interfaces.nmea2000.gateways import GATEWAY_KINDS, GatewayConfig, N2kGatewayReader  # noqa: PLC0415
             from interfaces.nmea2000.transport import CanBusConfig, N2kCanReader  # noqa: PLC0415
 
             channel = "" if s["channel"] is None else str(s["channel"])
+            variation = s.get("variation_deg")
+            decoder = N2kDecoder(variation_rad=None if variation is None else math.radians(variation))
+            self._n2k_decoders[name] = decoder  # who claimed which address (60928), for routes by NAME
+            if s["interface"] in GATEWAY_KINDS:
+                return N2kGatewayReader(GatewayConfig(s["interface"], channel, dict(s.get("options") or {})),
+                                        lambda event, n=name: self._n2k_event(n, event), clock=self.clock,
+                                        decoder=decoder, deliver_raw=self.recorder is not None).start()
             bus = CanBusConfig(s["interface"], channel or "can0", dict(s.get("options") or {}))
+            by_name = any(route.source_name is not None for route in self.router.routes_of(name))
             return N2kCanReader(bus, lambda event, n=name: self._n2k_event(n, event), clock=self.clock,
-                                deliver_raw=self.recorder is not None).start()
+                                decoder=decoder, deliver_raw=self.recorder is not None,
+                                request_address_claims=by_name).start()
         from interfaces.mavlink.codec import parse_signing_key  # noqa: PLC0415
         from interfaces.mavlink.transport import MavlinkUdpReader  # noqa: PLC0415
 
@@ -217,7 +230,10 @@ class InputPump:
             match = self._n2k_pattern.match(event.source)
             self._put(("health", transport, event.t_s, None))
             if match is not None:
-                sensor = self.router.nmea2000(transport, int(match.group(1)), event.message)
+                address = int(match.group(1))
+                decoder = self._n2k_decoders.get(transport)
+                sensor = self.router.nmea2000(transport, address, event.message,
+                                              None if decoder is None else decoder.name_of(address))
                 if sensor is not None:
                     seq = self._last_raw_seq.get(transport, 0)
                     self._put((seq, Measurement(event.t_s, sensor, event.message)))

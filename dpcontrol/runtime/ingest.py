@@ -13,6 +13,7 @@ Pure per-step logic: no clock, no I/O, no threads (the transports that read devi
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any, ClassVar
@@ -23,7 +24,8 @@ from dpcontrol.runtime.transport_health import InputHealth
 from interfaces.mavlink.codec import MavlinkDecoder, parse_signing_key
 from interfaces.messages import LinkHeartbeat, Measurement, Rejected
 from interfaces.nmea0183 import Nmea0183Decoder
-from interfaces.nmea2000.codec import N2kDecoder
+from interfaces.nmea0183.codec import DEFAULT_MAX_SENTENCE_CHARS
+from interfaces.nmea2000.codec import N2kDecoder, parse_can_id
 
 Count = Callable[..., None]
 """``count(t_s, reason=None)``: one frame of a transport, decoded (no reason) or rejected."""
@@ -87,7 +89,7 @@ class Nmea0183Input(TransportInput):
 
     def __init__(self, transport: TransportConfig, router: SensorRouter, health: InputHealth | None) -> None:
         super().__init__(transport, router, health)
-        self.decoder = Nmea0183Decoder()
+        self.decoder = Nmea0183Decoder(transport.settings.get("max_sentence_chars", DEFAULT_MAX_SENTENCE_CHARS))
 
     def feed(self, t_s: float, data: bytes, out: list[Measurement] | None, *, can_id: int | None = None) -> None:
         count = self._count
@@ -111,18 +113,26 @@ class Nmea0183Input(TransportInput):
 
 
 class Nmea2000Input(TransportInput):
-    """A NMEA 2000 bus: one CAN frame per input (fast packets reassembled, with expiry)."""
+    """A NMEA 2000 bus: one CAN frame per input (fast packets reassembled, with expiry), or one whole message of
+    more than 8 bytes as a gateway (NGT-1) delivers it. Magnetic headings take the transport's configured
+    ``variation_deg`` when the bus broadcasts none; routes by device NAME follow the bus's address claims."""
 
     protocol = "nmea2000"
 
     def __init__(self, transport: TransportConfig, router: SensorRouter, health: InputHealth | None) -> None:
         super().__init__(transport, router, health)
-        self.decoder = N2kDecoder()
+        variation = transport.settings.get("variation_deg")
+        self.decoder = N2kDecoder(variation_rad=None if variation is None else math.radians(variation))
 
     def feed(self, t_s: float, data: bytes, out: list[Measurement] | None, *, can_id: int | None = None) -> None:
         if can_id is None:
             raise ValueError(f"{self.name}: a NMEA 2000 frame needs its CAN identifier")
-        self._results(t_s, self.decoder.decode_frame(can_id, data, t_s), out)
+        if len(data) > 8:  # a whole message from a gateway: its identifier names the PGN and the source
+            header = parse_can_id(can_id)
+            results = self.decoder.decode_message(header.pgn, header.source, data, t_s)
+        else:
+            results = self.decoder.decode_frame(can_id, data, t_s)
+        self._results(t_s, results, out)
 
     def feed_record(self, t_s: float, record: Mapping[str, Any], data: bytes, out: list[Measurement]) -> None:
         can_id = record.get("can_id")
@@ -140,7 +150,8 @@ class Nmea2000Input(TransportInput):
                 continue
             self._count(t_s)
             if out is not None:
-                sensor = self.router.nmea2000(self.name, result.source_address, item)
+                address = result.source_address
+                sensor = self.router.nmea2000(self.name, address, item, self.decoder.name_of(address))
                 if sensor is not None:
                     out.append(Measurement(t_s, sensor, item))
 

@@ -10,11 +10,11 @@ identical measurements.
 
 Defaults, chosen so that one physical quantity is not counted twice:
 
-* NMEA 0183 position sensors use GGA, GNS (and GST statistics); RMC only when listed in
-  ``sentences`` (a receiver sending GGA and RMC for the same epoch would otherwise double it);
+* NMEA 0183 position sensors use GGA, GNS (and GST statistics); RMC and GLL only when listed in
+  ``sentences`` (a receiver sending GGA and RMC or GLL for the same epoch would otherwise double it);
   heading sensors use HDT, THS (and ROT);
 * NMEA 2000: every position (129025, 129029) and heading (127250) PGN from the configured source
-  address (or any address when none is configured);
+  address and/or device NAME (or any source when none is configured);
 * MAVLink: GPS_RAW_INT for position (GLOBAL_POSITION_INT is the autopilot's fused estimate, not a
   reference), ATTITUDE for heading and rate of turn.
 """
@@ -119,11 +119,14 @@ class SensorRouter:
             return route.sensor.name
         return None
 
-    def nmea2000(self, transport: str, source_address: int, message: SensorMessage) -> str | None:
-        """Sensor for a message from NMEA 2000 ``source_address``."""
+    def nmea2000(self, transport: str, source_address: int, message: SensorMessage,
+                 source_name: int | None = None) -> str | None:
+        """Sensor for a message from NMEA 2000 ``source_address``, whose device claimed it with ``source_name``
+        (its 64-bit NAME, when a 60928 claim was seen): a route with a NAME follows the device to any address."""
         kind = message_kind(message)
         for route in self._by_transport.get(transport, ()):
-            if route.sensor.kind is kind and route.source_address in (None, source_address):
+            if (route.sensor.kind is kind and route.source_address in (None, source_address)
+                    and route.source_name in (None, source_name)):
                 return route.sensor.name
         self.unrouted += 1
         return None

@@ -6,15 +6,20 @@ what is written here is the meaning:
 * ``GPS_RAW_INT`` → :class:`PositionFix` (``fix_type`` < 2 = no fix → ``Rejected("invalid_fix")``;
   2/3 → GPS, 4 DGPS, 5 RTK float, 6 RTK fixed, 7 static → MANUAL (a fixed, not measured position),
   8 PPP → DGPS), plus :class:`CourseOverGround` from ``vel``/``cog`` and a dual-antenna
-  :class:`Heading` from the ``yaw`` extension (0 = not provided, 36000 = north) when sent.
+  :class:`Heading` from the ``yaw`` extension (0 = not provided, 36000 = north) when sent. A fix at
+  lat = lon = 0 is a receiver's placeholder, not a position → ``Rejected("not_available")``.
 * ``GLOBAL_POSITION_INT`` (the autopilot's fused estimate; no fix quality on the wire, reported as
   GPS) → :class:`PositionFix` (lat = lon = 0 is what autopilots send before they have a position →
   ``Rejected("not_available")``), :class:`Heading` from ``hdg`` (65535 = unknown → none), and
   :class:`CourseOverGround` from ``vx``/``vy``.
-* ``ATTITUDE`` → :class:`Attitude`, :class:`Heading` (yaw wrapped to [0, 2π)) and
+* ``ATTITUDE`` → :class:`Attitude`, :class:`Heading` (yaw in [-π, π] moved to [0, 2π); a yaw outside
+  [-π, π] is no Euler angle and rejects the packet, it is not wrapped into a plausible heading) and
   :class:`RateOfTurn` (``yawspeed``: the body z rate r, equal to ψ̇ for small roll and pitch — the
   Euler-angle kinematics ψ̇ = (q sin φ + r cos φ)/cos θ, Fossen eq. (2.29), differ by < 1 % below
   8° of roll or pitch). NaN/inf floats are missing values, never numbers.
+
+Every message a packet decodes to is checked against the physical limits of :mod:`interfaces.limits`;
+one value outside them rejects the whole packet as ``out_of_range``.
 * ``HEARTBEAT`` → :class:`LinkHeartbeat`; :class:`HeartbeatMonitor` turns heartbeats into link
   state (lost after ``timeout_s`` without one: 5 s = 5 missed beats at 1 Hz).
 
@@ -40,6 +45,7 @@ from typing import Any, Final, NamedTuple
 from pymavlink.dialects.v20 import common as mavlink2
 
 from dpbase.frames import TWO_PI, ssa
+from interfaces.limits import ROLL_MAX_RAD, violation
 from interfaces.messages import (
     Attitude,
     CourseOverGround,
@@ -223,6 +229,10 @@ class MavlinkDecoder:
             items = convert(message)
         except Exception as error:  # a converter bug on odd values must not take the reader down
             items = [Rejected("decode_error", f"{name}: {error!r}", bytes(message.get_msgbuf()[:_RAW_KEEP]))]
+        problems = [problem for item in items if not isinstance(item, Rejected)
+                    and (problem := violation(item)) is not None]
+        if problems:  # one impossible value discredits the whole packet
+            items = [Rejected("out_of_range", f"{name}: {problems[0]}", bytes(message.get_msgbuf()[:_RAW_KEEP]))]
         out = []
         for item in items:
             if isinstance(item, Rejected):
@@ -270,6 +280,8 @@ def _gps_raw_int(m: Any) -> list[SensorMessage | Rejected]:
     quality = _FIX_TYPES.get(m.fix_type)
     if quality is None:
         return [Rejected("invalid_fix", f"GPS_RAW_INT fix_type {m.fix_type}", raw)]
+    if m.lat == 0 and m.lon == 0:
+        return [Rejected("not_available", f"GPS_RAW_INT fix_type {m.fix_type} at lat = lon = 0 (no position)", raw)]
     position = _position(m.lat, m.lon, "GPS_RAW_INT", raw)
     if isinstance(position, Rejected):
         return [position]
@@ -317,6 +329,9 @@ def _attitude(m: Any) -> list[SensorMessage | Rejected]:
     if roll is None and pitch is None and yaw is None and rate is None:
         return [Rejected("not_available", "ATTITUDE without finite values", bytes(m.get_msgbuf()[:_RAW_KEEP]))]
     out: list[SensorMessage | Rejected] = []
+    if yaw is not None and not -ROLL_MAX_RAD <= yaw <= ROLL_MAX_RAD:
+        return [Rejected("out_of_range", f"ATTITUDE yaw {yaw} rad is not in [-pi, pi]",
+                         bytes(m.get_msgbuf()[:_RAW_KEEP]))]
     if roll is not None or pitch is not None or yaw is not None:
         out.append(Attitude(roll, pitch, None if yaw is None else ssa(yaw)))
     if yaw is not None:

@@ -9,6 +9,7 @@ Transport: :class:`SerialReader` (background thread, reconnects), :class:`Serial
 
 from interfaces.nmea0183.codec import (
     DECODED_SENTENCES,
+    DEFAULT_MAX_SENTENCE_CHARS,
     LATLON_QUANTISATION_M,
     NMEA_MAX_SENTENCE_CHARS,
     REJECT_REASONS,
@@ -30,6 +31,7 @@ from interfaces.nmea0183.transport import LinkState, PtyPair, ReceivedLine, Seri
 
 __all__ = [
     "DECODED_SENTENCES",
+    "DEFAULT_MAX_SENTENCE_CHARS",
     "LATLON_QUANTISATION_M",
     "NMEA_MAX_SENTENCE_CHARS",
     "REJECT_REASONS",

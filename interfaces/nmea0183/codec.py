@@ -23,9 +23,14 @@ Framing rules (all skips are counted per reason, none is fatal):
   reconnect), counted once per run between terminators;
 * a sentence cut short by the start of the next one (two ``$`` in one line, a missing CR LF)
   is ``merged``; the sentence that follows is decoded normally;
-* a sentence longer than ``max_sentence_chars`` (82 in NMEA 0183, ``$`` to LF) is ``too_long``;
-  the buffer never holds more than that many bytes of an unterminated line, so garbage without
-  a newline cannot grow memory.
+* a sentence longer than ``max_sentence_chars`` (``$`` to LF; default
+  :data:`DEFAULT_MAX_SENTENCE_CHARS`, 128, above NMEA 0183's 82 so that high-precision receivers are
+  read) is ``too_long``; the buffer never holds more than that many bytes of an unterminated line, so
+  garbage without a newline cannot grow memory.
+
+Every message a sentence decodes to is checked against the physical limits of
+:mod:`interfaces.limits` (a rate of turn beyond half a turn a second, a negative HDOP, a speed above
+1000 kn ...): one value outside them rejects the sentence as ``out_of_range``.
 
 Counters (``Nmea0183Decoder.counters``) keep ``frames == ok + ignored + rejected`` at all times:
 ``ok`` frames produced at least one message, ``ignored`` frames are well-formed sentences with a
@@ -51,6 +56,7 @@ import pynmea2
 
 from dpbase.frames import ssa
 from dpbase.geodesy import WGS84_A_M, WGS84_E2
+from interfaces.limits import violation
 from interfaces.messages import (
     CourseOverGround,
     FixQuality,
@@ -67,7 +73,18 @@ from interfaces.messages import (
 # constants
 
 NMEA_MAX_SENTENCE_CHARS = 82
-"""NMEA 0183 limit: ``$`` through the checksum and CR LF."""
+"""NMEA 0183 limit: ``$`` through the checksum and CR LF (what the encoders keep to)."""
+
+DEFAULT_MAX_SENTENCE_CHARS = 128
+"""Longest sentence the decoder accepts by default, ``$`` through CR LF.
+
+Receivers in high-precision mode (u-blox HPNMEA, Trimble, SkyTraq, Unicore, Hemisphere RTK) write 8
+decimals of arc-minutes and break NMEA's 82: up to 93 characters in gpsd's corpus of 115 receivers.
+GGA with every field at its widest high-precision width (``hhmmss.sss``, ``ddmm.mmmmmmmm``,
+``dddmm.mmmmmmmm``, 2-digit satellites, ``99.99`` HDOP, ``-99999.999`` altitude, ``-999.999``
+separation, ``999.9`` age, 4-digit station) is 101 characters; 128, the next power of two, leaves
+room for a receiver wider still. The limit only bounds memory and ends a runaway line: 128 bytes are
+as harmless as 82."""
 
 LATLON_MINUTE_DECIMALS = 7
 """Decimals of arc-minutes written by the encoders."""
@@ -97,7 +114,8 @@ REJECT_REASONS = (
     "invalid_fix",     # GNSS says no fix: GGA quality 0, RMC status V, FAA mode N (or manual/simulated)
     "invalid_status",  # heading/rate/wind sensor says invalid: THS mode V, ROT/MWV status V
     "no_data",         # a required field is empty
-    "bad_field",       # a field is not a number in the NMEA format or out of range
+    "bad_field",       # a field is not a number in the NMEA format
+    "out_of_range",    # a well-formed value outside its physical limits (interfaces.limits)
 )
 """Machine-readable reasons a frame becomes a :class:`Rejected` (``counters["rejected.<reason>"]``)."""
 
@@ -193,7 +211,7 @@ def _coordinate(text: str, hemisphere: str, is_lat: bool) -> float | None:
         raise _FieldError("bad_field", f"{name} {text!r} has {minutes} minutes")
     value = int(match.group(1)) + minutes / 60.0
     if value > (90.0 if is_lat else 180.0):
-        raise _FieldError("bad_field", f"{name} {text!r} is out of range")
+        raise _FieldError("out_of_range", f"{name} {text!r} is beyond {'90' if is_lat else '180'} degrees")
     positive, negative = ("N", "S") if is_lat else ("E", "W")
     if hemisphere == positive:
         return value
@@ -211,7 +229,7 @@ def _utc_time_s(text: str) -> float | None:
         raise _FieldError("bad_field", f"UTC time {text!r} is not hhmmss.ss")
     hours, minutes, seconds = int(match.group(1)), int(match.group(2)), float(match.group(3))
     if hours > 23 or minutes > 59 or seconds >= 61.0:  # 60.x: a leap second
-        raise _FieldError("bad_field", f"UTC time {text!r} is out of range")
+        raise _FieldError("out_of_range", f"UTC time {text!r} is not a time of day")
     return hours * 3600.0 + minutes * 60.0 + seconds
 
 
@@ -221,7 +239,7 @@ def _angle_deg(text: str, name: str) -> float | None:
     if value is None:
         return None
     if value > 360.0:
-        raise _FieldError("bad_field", f"{name} {text!r} is not in [0, 360] deg")
+        raise _FieldError("out_of_range", f"{name} {text!r} is not in [0, 360] deg")
     return 0.0 if value == 360.0 else value
 
 
@@ -316,6 +334,24 @@ def _gns(data: list[str], strict: bool) -> tuple[SensorMessage, ...]:
                         _number(f[8], "GNS altitude")),)
 
 
+def _gll(data: list[str], strict: bool) -> tuple[SensorMessage, ...]:
+    """GLL: lat, N/S, lon, E/W, time, status A/V, mode (NMEA 2.3+; absent before).
+
+    Status ``V`` or mode ``N`` is no fix; modes ``M``/``S`` are not measurements (strict). Without a mode
+    (NMEA < 2.3) status ``A`` is a plain GNSS fix, as for RMC.
+    """
+    f = _fields(data, 7)
+    status = f[5]
+    if status == "V":
+        raise _FieldError("invalid_fix", "GLL status V (data not valid)")
+    if status != "A":
+        raise _FieldError("no_data" if not status else "bad_field", f"GLL status {status!r} is not A/V")
+    quality = _faa_quality(f[6], "GLL", strict) if f[6] else FixQuality.GPS
+    lat = _required(_coordinate(f[0], f[1], True), "GLL latitude")
+    lon = _required(_coordinate(f[2], f[3], False), "GLL longitude")
+    return (PositionFix(lat, lon, quality, _utc_time_s(f[4])),)
+
+
 def _gst(data: list[str], strict: bool) -> tuple[SensorMessage, ...]:
     """GST: time, RMS range, σ major, σ minor, orientation [deg], σ lat, σ lon, σ alt [m]."""
     del strict
@@ -327,7 +363,7 @@ def _gst(data: list[str], strict: bool) -> tuple[SensorMessage, ...]:
     # the orientation of an axis: SkyTraq sends it signed (-41.8 is the axis of 138.2); keep it in (-180, 180]
     orientation_deg = _number(f[4], "GST orientation")
     if orientation_deg is not None and abs(orientation_deg) > 360.0:
-        raise _FieldError("bad_field", f"GST orientation {f[4]!r} is not an angle in degrees")
+        raise _FieldError("out_of_range", f"GST orientation {f[4]!r} is not an angle in degrees")
     sigma_n = _number(f[5], "GST sigma latitude", signed=False)
     sigma_e = _number(f[6], "GST sigma longitude", signed=False)
     sigma_d = _number(f[7], "GST sigma altitude", signed=False)
@@ -393,7 +429,7 @@ def _mwv(data: list[str], strict: bool) -> tuple[SensorMessage, ...]:
 
 
 _DECODERS: dict[str, Callable[[list[str], bool], tuple[SensorMessage, ...]]] = {
-    "GGA": _gga, "RMC": _rmc, "GNS": _gns, "GST": _gst, "HDT": _hdt, "THS": _ths, "ROT": _rot, "MWV": _mwv,
+    "GGA": _gga, "RMC": _rmc, "GNS": _gns, "GLL": _gll, "GST": _gst, "HDT": _hdt, "THS": _ths, "ROT": _rot, "MWV": _mwv,
 }
 DECODED_SENTENCES = tuple(_DECODERS)
 """Sentence types that become messages; every other well-formed sentence is counted as ignored."""
@@ -445,9 +481,9 @@ class Nmea0183Decoder:
     Parameters
     ----------
     max_sentence_chars : int
-        Longest accepted sentence, ``$`` through checksum plus CR LF. NMEA 0183 says 82; receivers
-        in high-precision mode (u-blox HPNMEA, Trimble/SkyTraq/Hemisphere RTK with 8 decimals of
-        minutes) exceed it and need about 100.
+        Longest accepted sentence, ``$`` through checksum plus CR LF: :data:`DEFAULT_MAX_SENTENCE_CHARS`
+        (128) by default. NMEA 0183 says 82; receivers in high-precision mode (u-blox HPNMEA,
+        Trimble/SkyTraq/Hemisphere RTK with 8 decimals of minutes) exceed it (93 characters).
     strict_validity : bool
         Reject fixes and headings that the sender marks as manual input or simulation (GGA quality
         7/8, FAA mode M/S, THS mode M/S): they are not measurements. ``False`` passes them on with
@@ -459,7 +495,7 @@ class Nmea0183Decoder:
     one decoder per stream (the transport owns one).
     """
 
-    def __init__(self, max_sentence_chars: int = NMEA_MAX_SENTENCE_CHARS, strict_validity: bool = True) -> None:
+    def __init__(self, max_sentence_chars: int = DEFAULT_MAX_SENTENCE_CHARS, strict_validity: bool = True) -> None:
         if max_sentence_chars < 16:
             raise ValueError(f"max_sentence_chars={max_sentence_chars} is too small for any NMEA sentence")
         self.max_sentence_chars = max_sentence_chars
@@ -646,6 +682,11 @@ class Nmea0183Decoder:
         except _FieldError as exc:
             self._reject(out, raw, exc.reason, exc.detail, address)
             return
+        for message in messages:
+            problem = violation(message)
+            if problem is not None:
+                self._reject(out, raw, "out_of_range", f"{address}: {problem}", address)
+                return
         counters = self.counters
         counters["frames"] += 1
         counters["ok"] += 1
@@ -667,7 +708,7 @@ class Nmea0183Decoder:
         out.append(Frame(raw, address, (), None))
 
 
-def decode_sentence(sentence: bytes | str, max_sentence_chars: int = NMEA_MAX_SENTENCE_CHARS,
+def decode_sentence(sentence: bytes | str, max_sentence_chars: int = DEFAULT_MAX_SENTENCE_CHARS,
                     strict_validity: bool = True) -> list[SensorMessage | Rejected]:
     """Decode one complete sentence (with or without CR LF) — a convenience for tests and tools.
 

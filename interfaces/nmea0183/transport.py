@@ -35,7 +35,7 @@ from types import TracebackType
 import serial
 
 from interfaces.messages import LinkStatus, Measurement, RejectedInput
-from interfaces.nmea0183.codec import NMEA_MAX_SENTENCE_CHARS, Frame, Nmea0183Decoder
+from interfaces.nmea0183.codec import DEFAULT_MAX_SENTENCE_CHARS, Frame, Nmea0183Decoder
 
 _log = logging.getLogger(__name__)
 
@@ -122,7 +122,7 @@ class SerialReader:
         on_line: Callable[[ReceivedLine], None] | None = None,
         on_link: Callable[[LinkStatus], None] | None = None,
         out_queue: queue.Queue | None = None,
-        max_sentence_chars: int = NMEA_MAX_SENTENCE_CHARS,
+        max_sentence_chars: int = DEFAULT_MAX_SENTENCE_CHARS,
         strict_validity: bool = True,
         read_timeout_s: float = 0.2,
         reconnect_initial_s: float = 0.05,

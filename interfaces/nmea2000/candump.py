@@ -18,12 +18,14 @@ it is read here.
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Iterator
 from dataclasses import dataclass
 
 from nmea2000 import _canboat as canboat
 
 MAX_LINE_CHARS = 512  # a candump line is < 100 characters; anything longer is garbage
+_TIMESTAMP_RE = re.compile(r"\d{1,12}(?:\.\d{1,9})?")
 
 
 @dataclass(frozen=True, slots=True)
@@ -72,6 +74,8 @@ def parse_candump_line(line: str, line_no: int = 0) -> CandumpFrame | None:
     if len(line) > MAX_LINE_CHARS:
         raise ValueError(f"line of {len(line)} characters is too long for a candump frame")
     stripped = line.strip()
+    if not stripped.isascii():  # canboat's parser (Rust) panics on a multi-byte character: never hand it one
+        raise ValueError("non-ASCII byte in a candump line")
     try:
         parsed = canboat.parse_line("candump", stripped)
     except ValueError as error:
@@ -83,10 +87,11 @@ def parse_candump_line(line: str, line_no: int = 0) -> CandumpFrame | None:
         raise ValueError(f"{len(data)} data bytes in a classic CAN frame")
     t_s = None
     if stripped.startswith("("):
-        try:
-            t_s = float(stripped[1:stripped.index(")")])
-        except ValueError as error:
-            raise ValueError(f"bad candump timestamp: {error}") from error
+        text = stripped[1:stripped.index(")")]
+        # candump -l writes seconds.microseconds; float() would also take nan, inf and 1e400
+        if not _TIMESTAMP_RE.fullmatch(text):
+            raise ValueError(f"candump timestamp ({text}) is not seconds.microseconds")
+        t_s = float(text)
     return CandumpFrame(t_s, canboat.can_id_compose(priority, pgn, source, destination), bytes(data), line_no)
 
 

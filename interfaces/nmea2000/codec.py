@@ -39,6 +39,7 @@ from nmea2000 import _canboat as canboat
 from nmea2000 import backend
 
 from dpbase.frames import TWO_PI, ssa
+from interfaces.limits import violation
 from interfaces.messages import (
     Attitude,
     CourseOverGround,
@@ -58,6 +59,10 @@ PGN_POSITION_RAPID: Final = 129025
 PGN_COG_SOG_RAPID: Final = 129026
 PGN_GNSS_POSITION: Final = 129029
 PGN_WIND: Final = 130306
+PGN_ADDRESS_CLAIM: Final = 60928
+PGN_MAGNETIC_VARIATION: Final = 127258
+STATE_PGNS: Final = frozenset({PGN_ADDRESS_CLAIM, PGN_MAGNETIC_VARIATION})
+"""PGNs that give no measurement but change how later ones are read (who an address is, the variation)."""
 
 # canboat identifiers of the PGN definitions we use (one variant each).
 _PGN_IDS: Final[dict[int, str]] = {
@@ -351,8 +356,9 @@ class N2kDecoder:
     :attr:`counters`: ``frames`` = ``ignored`` + ``bad_frame`` + ``single_frames`` +
     ``fast_packet_frames``; every returned reject adds one to ``rejected`` and to
     ``rejected.<reason>``, every returned message one to ``messages``; and ``messages`` +
-    ``rejected`` = ``single_frames`` + ``fast_packet_messages`` + the fast-packet rejects
-    (``truncated_fast_packet``, ``bad_fast_packet``) + ``bad_frame``.
+    ``rejected`` = ``single_frames`` + ``fast_packet_messages`` + ``whole_messages`` (reassembled by a
+    gateway, :meth:`decode_message`) + the fast-packet rejects (``truncated_fast_packet``,
+    ``bad_fast_packet``) + ``bad_frame``.
 
     Validity before values:
 
@@ -361,14 +367,23 @@ class N2kDecoder:
     * 129025 carries no quality: it takes the method of the latest 129029 from the same source
       if that is at most ``fix_state_max_age_s`` old (an invalid one rejects it), otherwise it
       is assumed to be a plain GNSS fix (``FixQuality.GPS``, counted as ``assumed_quality``).
-    * 127250: only a *true* heading is a heading measurement; a magnetic one becomes true only when
-      the variation is sent (true = sensor + deviation + variation, deviation 0 when not sent,
-      NMEA 2000 convention); otherwise ``Rejected("magnetic_heading")``.
+    * 127250: only a *true* heading is a heading measurement; a magnetic one becomes true with a
+      variation (true = sensor + deviation + variation, deviation 0 when not sent, NMEA 2000
+      convention): the one in the message; else the latest 127258 of the bus at most
+      ``variation_max_age_s`` old (the compass's own source preferred); else ``variation_rad`` when
+      configured; otherwise ``Rejected("magnetic_heading")``.
+    * 127258 (magnetic variation) and 60928 (ISO address claim) give no message (counted ``ignored``
+      and ``variations`` / ``address_claims``): they are kept as state. A claim tells the 64-bit NAME
+      of the device at an address (:meth:`name_of`, :meth:`address_of`); when another NAME claims an
+      address, what was known of the address (fix state, variation) is forgotten
+      (``address_changes``).
     * 129026: a magnetic course has no variation in this PGN → ``course_rad=None``.
     * 130306: references "true (ground, north)" and "apparent" become :class:`Wind`; the others
       (magnetic, true boat/water referenced) → ``Rejected("unsupported_reference")``.
     * "Not available"/"error" values → ``None`` fields, or ``Rejected("not_available")`` when
-      nothing usable is left; values outside their physical range → ``Rejected("out_of_range")``.
+      nothing usable is left; values outside their physical range (:mod:`interfaces.limits`: a
+      129026 speed of 655 m/s, a 129029 altitude of 9e12 m, an attitude angle beyond π ...) →
+      ``Rejected("out_of_range")``.
 
     Parameters
     ----------
@@ -376,15 +391,90 @@ class N2kDecoder:
         See :class:`FastPacketAssembler`.
     fix_state_max_age_s : float
         How long a 129029 fix quality applies to the 129025 rapid updates of its source [s].
+    variation_rad : float, optional
+        Magnetic variation (east positive) [rad] for magnetic 127250 headings when neither the message
+        nor a recent 127258 gives one: the value of the vessel's chart, for a bus without a variation.
+    variation_max_age_s : float
+        How long a 127258 variation applies [s] (senders repeat it every second; a device gone silent
+        for a minute no longer vouches for it).
     """
 
     def __init__(self, fast_packet_timeout_s: float = 0.75, max_partial: int = 64,
-                 fix_state_max_age_s: float = 3.0) -> None:
+                 fix_state_max_age_s: float = 3.0, variation_rad: float | None = None,
+                 variation_max_age_s: float = 60.0) -> None:
+        if variation_rad is not None and not -math.pi <= variation_rad <= math.pi:
+            raise ValueError(f"variation_rad={variation_rad!r} is not in [-pi, pi]")
+        if not variation_max_age_s > 0.0:
+            raise ValueError(f"variation_max_age_s={variation_max_age_s!r} must be > 0")
         self.assembler = FastPacketAssembler(fast_packet_timeout_s, max_partial)
         self.fix_state_max_age_s = float(fix_state_max_age_s)
+        self.variation_rad = variation_rad
+        self.variation_max_age_s = float(variation_max_age_s)
         self.counters: Counter[str] = Counter()
         # source address → (t_s of the latest 129029, its quality or None when it was invalid)
         self._fix_state: dict[int, tuple[float, FixQuality | None]] = {}
+        # source address → (t_s, variation [rad]) of its latest 127258
+        self._variation: dict[int, tuple[float, float]] = {}
+        self._names: dict[int, int] = {}  # address → NAME (60928)
+        self._variation_choice: dict[int | None, int] = {}  # compass address → the 127258 sender it uses
+
+    # ---- bus state -----------------------------------------------------------------------
+
+    def name_of(self, address: int) -> int | None:
+        """The 64-bit NAME the device at ``address`` claimed it with, if a claim was seen."""
+        return self._names.get(address)
+
+    def address_of(self, name: int) -> int | None:
+        """The address the device with ``name`` claimed last, if any."""
+        return next((address for address, claimed in self._names.items() if claimed == name), None)
+
+    def bus_variation(self, t_s: float, source: int | None = None) -> float | None:
+        """The magnetic variation [rad] the bus gave at most ``variation_max_age_s`` before ``t_s``, for the
+        compass at ``source``; ``None`` when no 127258 is that fresh.
+
+        The compass's own variation if it sends one; else one other sender's, kept while it stays fresh.
+        Devices on one bus do disagree (canboat's can0-1.pcap: -4.2° from two of them, +2.4° from six):
+        taking whichever spoke last would jump the heading by their difference at every message.
+        """
+        fresh = {address: entry for address, entry in self._variation.items()
+                 if 0.0 <= t_s - entry[0] <= self.variation_max_age_s}
+        if not fresh:
+            return None
+        if source in fresh:
+            return fresh[source][1]
+        chosen = self._variation_choice.get(source)
+        if chosen not in fresh:
+            chosen = min(fresh)  # the lowest address: the same choice whatever order they spoke in
+            self._variation_choice[source] = chosen  # type: ignore[index]
+        return fresh[chosen][1]
+
+    def _state(self, pgn: int, source: int, payload: bytes, t_s: float) -> None:
+        """Read a 60928 or 127258 into the bus state (a malformed one is counted and left out)."""
+        counters = self.counters
+        if pgn == PGN_ADDRESS_CLAIM:
+            if len(payload) < 8:
+                counters["bad_address_claim"] += 1
+                return
+            counters["address_claims"] += 1
+            name = int.from_bytes(payload[:8], "little")
+            if self._names.get(source, name) != name:  # another device took this address
+                counters["address_changes"] += 1
+                self._fix_state.pop(source, None)
+                self._variation.pop(source, None)
+            for address in [a for a, claimed in self._names.items() if claimed == name and a != source]:
+                del self._names[address]  # the device moved to a new address
+            self._names[source] = name
+            return
+        try:
+            fields = _fields(pgn, payload)
+        except Exception:  # a library surprise on odd bytes: no variation from it
+            fields = None
+        variation = None if fields is None or len(payload) < 6 else _number(fields, "variation")
+        if variation is None or not -math.pi - 1e-4 <= variation <= math.pi + 1e-4:
+            counters["variation_unusable"] += 1
+            return
+        counters["variations"] += 1
+        self._variation[source] = (t_s, variation)
 
     # ---- frames --------------------------------------------------------------------------
 
@@ -407,6 +497,8 @@ class N2kDecoder:
         _priority, pgn, source, _destination = canboat.can_id_decompose(can_id)
         if pgn not in SUPPORTED_PGNS:
             counters["ignored"] += 1
+            if pgn in STATE_PGNS:
+                self._state(pgn, source, bytes(data), t_s)
             return self.expire(t_s) if self.assembler.pending else []
         data = bytes(data)
         if pgn in FAST_PACKET_PGNS:
@@ -420,6 +512,25 @@ class N2kDecoder:
         counters["single_frames"] += 1
         out = self.expire(t_s) if self.assembler.pending else []
         out.append(self._finish(source, pgn, self.decode_payload(pgn, data, source, t_s)))
+        return out
+
+    def decode_message(self, pgn: int, source: int, payload: bytes | bytearray | memoryview,
+                       t_s: float) -> list[N2kDecoded]:
+        """Decode one whole message as a gateway delivers it (fast packets already joined: Actisense,
+        iKonvert, canboat's FAST format), received at ``t_s`` [s].
+
+        Counted as ``whole_messages`` (or ``ignored_messages`` for a PGN not decoded here); otherwise as
+        :meth:`decode_frame`.
+        """
+        counters = self.counters
+        out = self.expire(t_s) if self.assembler.pending else []
+        if pgn not in SUPPORTED_PGNS:
+            counters["ignored_messages"] += 1
+            if pgn in STATE_PGNS:
+                self._state(pgn, source, bytes(payload), t_s)
+            return out
+        counters["whole_messages"] += 1
+        out.append(self._finish(source, pgn, self.decode_payload(pgn, bytes(payload), source, t_s)))
         return out
 
     def expire(self, t_s: float) -> list[N2kDecoded]:
@@ -459,9 +570,11 @@ class N2kDecoder:
             fields = _fields(pgn, bytes(payload))
             if fields is None:
                 return Rejected("decode_error", f"PGN {pgn}: the canboat decoder returned nothing", raw)
-            return _DECODERS[pgn](self, fields, source, t_s, raw)
+            item = _DECODERS[pgn](self, fields, source, t_s, raw)
         except Exception as error:  # a library surprise (odd value type) must not take the reader down
             return Rejected("decode_error", f"PGN {pgn}: {type(error).__name__}: {error}", raw)
+        problem = None if isinstance(item, Rejected) else violation(item)
+        return item if problem is None else Rejected("out_of_range", f"PGN {pgn}: {problem}", raw)
 
     def _position_rapid(self, f: Mapping[str, object], source: int, t_s: float, raw: bytes) -> PositionFix | Rejected:
         lat, lon = _number(f, "latitude"), _number(f, "longitude")
@@ -510,7 +623,7 @@ class N2kDecoder:
             return Rejected("not_available", "129026 no true COG and no SOG", raw)
         return CourseOverGround(None if cog is None else wrap_2pi(cog), sog)
 
-    def _vessel_heading(self, f: Mapping[str, object], _source: int, _t_s: float, raw: bytes) -> Heading | Rejected:
+    def _vessel_heading(self, f: Mapping[str, object], source: int, t_s: float, raw: bytes) -> Heading | Rejected:
         heading = _number(f, "heading")
         if heading is None:
             return Rejected("not_available", "127250 heading not available", raw)
@@ -522,7 +635,12 @@ class N2kDecoder:
         if reference == 1:
             variation = _number(f, "variation")
             if variation is None:
-                return Rejected("magnetic_heading", "127250 magnetic heading without variation", raw)
+                variation = self.bus_variation(t_s, source)
+            if variation is None:
+                variation = self.variation_rad
+            if variation is None:
+                return Rejected("magnetic_heading", "127250 magnetic heading without variation (none in the "
+                                "message, no 127258 on the bus, none configured)", raw)
             deviation = _number(f, "deviation") or 0.0
             return Heading(wrap_2pi(heading + deviation + variation))
         return Rejected("not_available", f"127250 heading reference {reference}", raw)
@@ -537,7 +655,9 @@ class N2kDecoder:
         yaw, pitch, roll = _number(f, "yaw"), _number(f, "pitch"), _number(f, "roll")
         if yaw is None and pitch is None and roll is None:
             return Rejected("not_available", "127257 yaw/pitch/roll not available", raw)
-        return Attitude(roll, pitch, None if yaw is None else ssa(yaw))
+        # int16 × 1e-4 rad reaches ±3.2767: beyond ±π it is no Euler angle, and rejected (interfaces.limits),
+        # not wrapped into a plausible yaw
+        return Attitude(roll, pitch, yaw)
 
     def _wind(self, f: Mapping[str, object], _source: int, _t_s: float, raw: bytes) -> Wind | Rejected:
         reference = _WIND_REFERENCES.get(_code(f, "reference"))  # type: ignore[arg-type]

@@ -38,11 +38,13 @@ import can
 
 from dpbase.schema import ConfigError, Section
 from interfaces.messages import LinkStatus, Measurement, Rejected, RejectedInput
-from interfaces.nmea2000.codec import Frame, N2kDecoder, n2k_source_name
+from interfaces.nmea2000.codec import BROADCAST, PGN_ADDRESS_CLAIM, Frame, N2kDecoder, make_can_id, n2k_source_name
 
 logger = logging.getLogger(__name__)
 
 Clock = Callable[[], float]
+PGN_ISO_REQUEST = 59904
+NULL_ADDRESS = 254
 
 
 @dataclass(frozen=True, slots=True)
@@ -175,12 +177,17 @@ class N2kCanReader:
         an idle bus.
     backoff_s : (float, float)
         First and longest wait between reconnect attempts [s] (doubling).
+    request_address_claims : bool
+        Each time the bus opens, send an ISO request for the address claim (PGN 59904 asking for 60928)
+        from the null address 254, which a node without an address may use (ISO 11783-5): every device
+        answers with its claim, so the NAME of each address is known without waiting for a power-up.
+        The only frame the reader ever sends; off by default (a listen-only reader).
     """
 
     def __init__(self, bus: CanBusConfig, sink: Callable[[N2kEvent], Any], *, clock: Clock = time.monotonic,
                  source_names: Mapping[int, str] | None = None, decoder: N2kDecoder | None = None,
                  deliver_raw: bool = False, poll_s: float = 0.1,
-                 backoff_s: tuple[float, float] = (0.05, 2.0)) -> None:
+                 backoff_s: tuple[float, float] = (0.05, 2.0), request_address_claims: bool = False) -> None:
         if not poll_s > 0.0 or not 0.0 < backoff_s[0] <= backoff_s[1]:
             raise ValueError("poll_s must be > 0 and 0 < backoff_s[0] <= backoff_s[1]")
         self.bus_config = bus
@@ -190,6 +197,7 @@ class N2kCanReader:
         self.deliver_raw = deliver_raw
         self.poll_s = poll_s
         self.backoff_s = backoff_s
+        self.request_address_claims = request_address_claims
         self.counters: Counter[str] = Counter()
         self._names = dict(source_names or {})
         self._stop = threading.Event()
@@ -283,6 +291,8 @@ class N2kCanReader:
                         self.counters["reconnects"] += 1
                     self._link(True, "bus open" if not failures else f"bus reopened after {failures} failure(s)")
                     failures = 0
+                    if self.request_address_claims:
+                        self._request_address_claims()
                 try:
                     message = self._bus.recv(self.poll_s)
                 except Exception as error:  # CanError, OSError, websocket closed …
@@ -304,6 +314,17 @@ class N2kCanReader:
         finally:
             self._drop_bus()
             self._connected.clear()
+
+    def _request_address_claims(self) -> None:
+        """ISO request (59904) for the address claim (60928), to all, from the null address 254."""
+        request = can.Message(arbitration_id=make_can_id(6, PGN_ISO_REQUEST, NULL_ADDRESS, BROADCAST),
+                              data=PGN_ADDRESS_CLAIM.to_bytes(3, "little"), is_extended_id=True)
+        try:
+            self._bus.send(request, timeout=self.poll_s)  # type: ignore[union-attr]
+            self.counters["address_claim_requests"] += 1
+        except Exception as error:  # a listen-only interface refuses: names come with the next claims
+            self.counters["address_claim_request_errors"] += 1
+            logger.info("n2k reader could not request address claims: %r", error)
 
     def _on_message(self, message: can.Message, t_s: float) -> None:
         counters = self.counters

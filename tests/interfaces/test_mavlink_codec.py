@@ -63,12 +63,13 @@ heading = st.floats(0.0, 2 * math.pi, exclude_max=True)
 
 @given(lat, lon, st.sampled_from([FixQuality.GPS, FixQuality.DGPS, FixQuality.RTK_FLOAT, FixQuality.RTK_FIXED,
                                   FixQuality.MANUAL]),
-       st.floats(-500.0, 5000.0), st.floats(0.0, 50.0), st.integers(0, 254), st.floats(0.0, 86399.999999),
+       st.floats(-500.0, 5000.0), st.floats(0.0, 50.0), st.integers(0, 99), st.floats(0.0, 86399.999999),
        heading, st.floats(0.0, 100.0), heading)
 @PROPERTY
 def test_gps_raw_int_round_trip(lat_deg: float, lon_deg: float, quality: FixQuality, alt_m: float, hdop: float,
                                 satellites: int, utc_s: float, course_rad: float, speed_mps: float,
                                 yaw_rad: float) -> None:
+    assume(round(lat_deg * 1e7) != 0 or round(lon_deg * 1e7) != 0)  # (0, 0) is no position (tested below)
     sent = PositionFix(lat_deg, lon_deg, quality, utc_time_s=utc_s, num_satellites=satellites, hdop=hdop,
                        altitude_m=alt_m)
     packet = MavlinkEncoder(3, 1).gps_raw_int(sent, course=CourseOverGround(course_rad, speed_mps),
@@ -183,6 +184,40 @@ def test_attitude_nan_is_missing_never_a_number() -> None:
     packet = MavlinkEncoder()._pack(MavlinkEncoder()._mav.attitude_encode(0, math.inf, 0.0, math.inf, 0, 0, math.nan))
     (att,) = decode(packet)
     assert att.roll_rad is None and att.yaw_rad is None and att.pitch_rad == 0.0
+
+
+def test_a_fix_at_zero_zero_is_no_position() -> None:
+    """Receivers and autopilots send lat = lon = 0 before they have a position, whatever fix_type says."""
+    encoder = MavlinkEncoder()
+    (item,) = decode(encoder._pack(encoder._mav.gps_raw_int_encode(0, 3, 0, 0, 0, 120, 65535, 65535, 65535, 9)))
+    assert isinstance(item, Rejected) and item.reason == "not_available"
+
+
+@pytest.mark.parametrize(("fields", "what"), [
+    ((0.0, 0.0, 4.0, 0.0, 0.0, 0.0), "yaw"),           # 4 rad is no Euler angle: not wrapped into a heading
+    ((0.0, 0.0, -100.0, 0.0, 0.0, 0.0), "yaw"),
+    ((3.5, 0.0, 1.0, 0.0, 0.0, 0.0), "roll"),
+    ((0.0, 1.7, 1.0, 0.0, 0.0, 0.0), "pitch"),
+    ((0.0, 0.0, 1.0, 0.0, 0.0, 1e30), "rate"),
+])
+def test_attitude_out_of_range_is_rejected_whole(fields: tuple[float, ...], what: str) -> None:
+    encoder = MavlinkEncoder()
+    (item,) = decode(encoder._pack(encoder._mav.attitude_encode(0, *fields)))
+    assert isinstance(item, Rejected) and item.reason == "out_of_range", what
+
+
+@pytest.mark.parametrize(("alt_mm", "eph", "vel", "satellites"), [
+    (2**31 - 1, 120, 100, 9),     # altitude 2147 km
+    (0, 60000, 100, 9),           # HDOP 600
+    (0, 120, 65534, 9),           # 655 m/s
+    (0, 120, 100, 200),           # 200 satellites used
+])
+def test_gps_raw_int_out_of_range_is_rejected(alt_mm: int, eph: int, vel: int, satellites: int) -> None:
+    encoder = MavlinkEncoder()
+    packet = encoder._pack(encoder._mav.gps_raw_int_encode(0, 3, 100_000_000, 200_000_000, alt_mm, eph, 65535, vel,
+                                                           1000, satellites))
+    (item,) = decode(packet)
+    assert isinstance(item, Rejected) and item.reason == "out_of_range"
 
 
 def test_datagram_accounting() -> None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from physical_range import out_of_range
 
 from interfaces.mavlink.codec import MavlinkDecoder, MavlinkEncoder
 from interfaces.messages import (
@@ -62,12 +63,8 @@ def _mutate(rng: np.random.Generator, pool: list[bytes]) -> bytes:
 
 
 def _assert_clean(item: object) -> None:
-    for name in item.__slots__:  # type: ignore[attr-defined]
-        value = getattr(item, name)
-        if isinstance(value, float):
-            assert math.isfinite(value), (item, name)
-    if isinstance(item, PositionFix):
-        assert abs(item.lat_deg) <= 90 and abs(item.lon_deg) <= 180
+    """A decoded message holds no NaN/inf and nothing outside its physical range (physical_range)."""
+    assert out_of_range(item) == [], item
     if isinstance(item, Heading):
         assert 0.0 <= item.heading_rad < 2 * math.pi
 

@@ -22,6 +22,7 @@ from interfaces.messages import (
     Wind,
 )
 from interfaces.nmea0183 import (
+    DEFAULT_MAX_SENTENCE_CHARS,
     LATLON_QUANTISATION_M,
     NMEA_MAX_SENTENCE_CHARS,
     REJECT_REASONS,
@@ -91,7 +92,7 @@ def fixes(draw: st.DrawFn, qualities: st.SearchStrategy = measured_qualities) ->
         lat_deg=draw(latitudes), lon_deg=draw(longitudes), quality=quality, utc_time_s=draw(utc_times),
         num_satellites=draw(st.one_of(st.none(), st.integers(low, 99))),
         hdop=draw(st.one_of(st.none(), st.floats(0.0, 99.99, allow_nan=False))),
-        altitude_m=draw(st.one_of(st.none(), st.floats(-9999.0, 99999.0, allow_nan=False))))
+        altitude_m=draw(st.one_of(st.none(), st.floats(-1000.0, 99999.0, allow_nan=False))))
 
 
 def assert_position_close(decoded: PositionFix, sent: PositionFix) -> None:
@@ -307,7 +308,7 @@ def test_encoders_refuse_what_no_receiver_sends() -> None:
     (nmea("HETHS,123.4,S"), "invalid_status"),                          # simulator, strict
     (nmea("HEHDT,,T"), "no_data"),
     (nmea("HEHDT,123.4,M"), "bad_field"),                               # magnetic is not true heading
-    (nmea("HEHDT,361.0,T"), "bad_field"),
+    (nmea("HEHDT,361.0,T"), "out_of_range"),
     (nmea("HEROT,12.0,V"), "invalid_status"),
     (nmea("HEROT,,A"), "no_data"),
     (nmea("WIMWV,45.0,R,5.0,M,V"), "invalid_status"),
@@ -318,15 +319,53 @@ def test_encoders_refuse_what_no_receiver_sends() -> None:
     (nmea("HEROT,1e3,A"), "bad_field"),
     (nmea("HEHDT,1_0,T"), "bad_field"),
     (nmea("GPGGA,120000.00,5960.0000,N,01100.6429,E,1,08,0.9,10.0,M,,M,,"), "bad_field"),  # 60 minutes
-    (nmea("GPGGA,120000.00,9100.0000,N,01100.6429,E,1,08,0.9,10.0,M,,M,,"), "bad_field"),  # 91°
+    (nmea("GPGGA,120000.00,9100.0000,N,01100.6429,E,1,08,0.9,10.0,M,,M,,"), "out_of_range"),  # 91°
     (nmea("GPGGA,120000.00,5957.0062,X,01100.6429,E,1,08,0.9,10.0,M,,M,,"), "bad_field"),  # hemisphere
-    (nmea("GPGGA,250000.00,5957.0062,N,01100.6429,E,1,08,0.9,10.0,M,,M,,"), "bad_field"),  # 25 h
+    (nmea("GPGGA,250000.00,5957.0062,N,01100.6429,E,1,08,0.9,10.0,M,,M,,"), "out_of_range"),  # 25 h
+    # well formed, physically impossible (interfaces.limits)
+    (nmea("HEROT,999999999999999999999999999999999999999999999999999999999.0,A"), "out_of_range"),
+    (nmea("HEROT,10801.0,A"), "out_of_range"),                         # more than half a turn a second
+    (nmea("GPGGA,120000.00,5957.0062,N,01100.6429,E,1,08,240000,10.0,M,,M,,"), "out_of_range"),  # HDOP
+    (nmea("GPGGA,120000.00,5957.0062,N,01100.6429,E,1,08,0.9,9000000000000.0,M,,M,,"), "out_of_range"),
+    (nmea("GPGGA,120000.00,5957.0062,N,01100.6429,E,1,100,0.9,10.0,M,,M,,"), "out_of_range"),  # satellites
+    (nmea("GPRMC,120000.00,A,5957.0062,N,01100.6429,E,1273.9,12.0,310722,,,A"), "out_of_range"),  # 655 m/s
+    (nmea("GPGST,120000.00,1e40,,,,1.0,1.0,1.0"), "bad_field"),
+    (nmea("GPGST,120000.00,1.0,,,,1.0,100000000.0,1.0"), "out_of_range"),
+    (nmea("WIMWV,45.0,R,300.0,M,A"), "out_of_range"),
+    (nmea("GPGLL,5957.0062,N,01100.6429,E,120000.00,V,N"), "invalid_fix"),
+    (nmea("GPGLL,5957.0062,N,01100.6429,E,120000.00,A,N"), "invalid_fix"),
+    (nmea("GPGLL,5957.0062,N,01100.6429,E,120000.00,A,S"), "invalid_fix"),  # simulator, strict
+    (nmea("GPGLL,5957.0062,N,01100.6429,E,120000.00,A,M"), "invalid_fix"),  # manual, strict
+    (nmea("GPGLL,,,,,120000.00,A,A"), "no_data"),
+    (nmea("GPGLL,5957.0062,N,01100.6429,E,120000.00,,A"), "no_data"),
 ])
 def test_invalid_or_empty_is_rejected_with_a_reason(sentence: bytes, reason: str) -> None:
     result = rejected(decode_sentence(sentence))
     assert result.reason == reason
     assert result.detail
     assert result.raw == sentence.rstrip(b"\r\n")
+
+
+@pytest.mark.parametrize(("sentence", "quality", "utc_time_s"), [
+    ("GPGLL,4916.45,N,12311.12,W,225444,A", FixQuality.GPS, 82484.0),                      # NMEA 2.0: no mode
+    ("GNGLL,5957.00620000,N,01100.64290000,E,120000.000,A,D", FixQuality.DGPS, 43200.0),
+    ("GPGLL,5957.0062,N,01100.6429,E,,A,R", FixQuality.RTK_FIXED, None),
+])
+def test_gll_is_a_position(sentence: str, quality: FixQuality, utc_time_s: float | None) -> None:
+    fix = only(decode_sentence(nmea(sentence)))
+    assert isinstance(fix, PositionFix)
+    assert (fix.quality, fix.utc_time_s) == (quality, utc_time_s)
+    assert fix.lat_deg == pytest.approx(float(sentence.split(",")[1][:2]) + float(sentence.split(",")[1][2:]) / 60)
+
+
+def test_the_default_sentence_limit_reads_high_precision_receivers() -> None:
+    """An RTK receiver with 8 decimals of minutes (gpsd's corpus, nmea-rtk.log): 92 characters, over NMEA's 82."""
+    sentence = b"$GNGGA,132819.60,4134.49795459,N,09345.03431408,W,2,10,0.9,278.161,M,-31.442,M,6.6,0133*6A\r\n"
+    assert len(sentence) == 92
+    fix = only(decode_sentence(sentence))
+    assert isinstance(fix, PositionFix) and fix.lat_deg == pytest.approx(41 + 34.49795459 / 60, abs=1e-12)
+    assert rejected(decode_sentence(sentence, max_sentence_chars=NMEA_MAX_SENTENCE_CHARS)).reason == "too_long"
+    assert Nmea0183Decoder().max_sentence_chars == DEFAULT_MAX_SENTENCE_CHARS > NMEA_MAX_SENTENCE_CHARS
 
 
 def test_nmea_41_navigational_status_does_not_invalidate_rmc() -> None:
@@ -443,7 +482,7 @@ def test_over_long_sentence_is_rejected_once_and_the_next_one_decodes() -> None:
     long_line = nmea(body)[:-2]
     for i in range(0, len(long_line), 7):  # arrives in small chunks: judged before its end arrives
         out += decoder.feed(long_line[i:i + 7])
-        assert decoder.buffered_bytes <= NMEA_MAX_SENTENCE_CHARS
+        assert decoder.buffered_bytes <= DEFAULT_MAX_SENTENCE_CHARS
     out += decoder.feed(b"\r\njunk\r\n" + GGA)  # the over-long line ends; what follows is judged afresh
     assert [type(item) for item in out] == [Rejected, Rejected, PositionFix]
     assert [out[0].reason, out[1].reason] == ["too_long", "garbage"] and len(out[0].raw) <= RAW_EXCERPT_BYTES
@@ -463,7 +502,7 @@ def test_garbage_without_newline_does_not_grow_memory() -> None:
     out = []
     for _ in range(4000):  # ~1 MB of binary without a line end or a sentence start
         out += decoder.feed(blob)
-        assert decoder.buffered_bytes <= NMEA_MAX_SENTENCE_CHARS
+        assert decoder.buffered_bytes <= DEFAULT_MAX_SENTENCE_CHARS
     assert [item.reason for item in out] == ["garbage"]  # one run, counted once
     assert decoder.counters["rejected"] == 1
     out = decoder.feed(b"\r\n" + GGA)
@@ -515,4 +554,4 @@ def test_arbitrary_bytes_never_raise_and_are_all_accounted_for(data: bytes) -> N
         assert frames  # something that is not a line end is never silently dropped
     for frame in frames:
         assert (frame.rejected is None) or (frame.rejected.reason in REJECT_REASONS and not frame.messages)
-        assert len(frame.raw) <= max(RAW_EXCERPT_BYTES, NMEA_MAX_SENTENCE_CHARS)
+        assert len(frame.raw) <= max(RAW_EXCERPT_BYTES, DEFAULT_MAX_SENTENCE_CHARS)

@@ -5,9 +5,10 @@ merged sentences (CR LF lost), over-long lines with a correct checksum, a field 
 hostile token with a correct checksum (so the value checks, not the checksum, must catch it),
 missing checksums, and unmodified sentences. Every input is followed by CR LF so each one's
 frames can be told apart in one long-lived decoder (the stream state carries over inputs).
-Checked: no exception escapes; every input that is not blank yields at least one frame; the
-counters add up (frames = ok + ignored + rejected, rejected = Σ per reason); unmodified
-sentences decode as they do on their own; the buffer stays bounded.
+Checked: no exception escapes; every input that is not blank yields at least one frame; every
+decoded value is finite and within physical limits (``physical_range``); the counters add up
+(frames = ok + ignored + rejected, rejected = Σ per reason); unmodified sentences decode as they
+do on their own; the buffer stays bounded.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import math
 from collections import Counter
 
 import numpy as np
+from physical_range import out_of_range
 
 from interfaces.messages import (
     CourseOverGround,
@@ -27,7 +29,7 @@ from interfaces.messages import (
     Wind,
 )
 from interfaces.nmea0183 import (
-    NMEA_MAX_SENTENCE_CHARS,
+    DEFAULT_MAX_SENTENCE_CHARS,
     REJECT_REASONS,
     Nmea0183Decoder,
     encode_gga,
@@ -120,13 +122,15 @@ def test_fuzzed_stream_never_raises_and_every_input_is_accounted_for() -> None:
         frames = decoder.feed_frames(data + b"\r\n")
         frames_total += len(frames)
         assert decoder.counters["frames"] - before == len(frames)
-        assert decoder.buffered_bytes <= NMEA_MAX_SENTENCE_CHARS
+        assert decoder.buffered_bytes <= DEFAULT_MAX_SENTENCE_CHARS
         if data.strip(b"\r\n"):
             assert frames, (kind, data)
         if kind == "valid":  # whatever came before, a clean sentence after CR LF decodes as on its own
             assert frames == alone[sentence], data
         for frame in frames:
             outcomes[frame.rejected.reason if frame.rejected else ("ok" if frame.messages else "ignored")] += 1
+            for message in frame.messages:  # finite, and within physical limits
+                assert out_of_range(message) == [], (message, data)
     frames_total += len(decoder.flush())
     counters = decoder.counters
     assert sum(kinds.values()) == N_INPUTS

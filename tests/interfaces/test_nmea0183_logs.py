@@ -71,11 +71,31 @@ def test_missing_file_raises_oserror(tmp_path: Path) -> None:
         list(decode_nmea0183_log(tmp_path / "absent.log"))
 
 
-def test_high_precision_logs_need_a_longer_limit() -> None:
+def test_high_precision_logs_are_read_by_default_and_the_limit_is_configurable() -> None:
     line = b"$GNGGA,132819.60,4134.49795459,N,09345.03431408,W,2,10,0.9,278.161,M,-31.442,M,6.6,0133*6A\r\n"
-    assert [r["rejected"] for r in decode_nmea0183_log(line)] == ["too_long"]
-    (record,) = decode_nmea0183_log(line, max_sentence_chars=100)
+    (record,) = decode_nmea0183_log(line)
     assert record["lat_deg"] == pytest.approx(41 + 34.49795459 / 60, abs=1e-12)
+    assert [r["rejected"] for r in decode_nmea0183_log(line, max_sentence_chars=82)] == ["too_long"]
+
+
+@pytest.mark.parametrize(("prefix", "t_s"), [
+    (b"2014-08-01T00:00:00.183000Z ", 1406851200.183),   # OpenRVDAS
+    (b"2014-08-01 00:00:00.183,", 1406851200.183),
+    (b"2014-08-01T02:00:00.183+02:00\t", 1406851200.183),
+    (b"2014-08-01T00:00:00Z;", 1406851200.0),
+])
+def test_a_loggers_capture_time_is_the_records_t_s(prefix: bytes, t_s: float) -> None:
+    hdt = encode_ths(Heading(1.0))
+    stats: dict[str, int] = {}
+    records = list(decode_nmea0183_log(prefix + hdt + b"garbage $\r\n" + hdt, stats))
+    assert records[0]["kind"] == "heading" and records[0]["t_s"] == pytest.approx(t_s, abs=1e-6)
+    assert [r.get("rejected") for r in records[1:]] == ["garbage", "no_checksum", None]  # no prefix, no capture time
+    assert "t_s" not in records[3] and stats["timestamped_lines"] == 1 and stats["rejected.garbage"] == 1
+
+
+def test_an_impossible_capture_time_is_not_taken_for_one() -> None:
+    records = list(decode_nmea0183_log(b"2014-13-01T00:00:00Z " + encode_ths(Heading(1.0))))
+    assert records[0]["rejected"] == "garbage" and "t_s" not in records[1]
 
 
 CORPUS_LOG = Path(__file__).parents[2] / "tests" / "corpora" / "data" / "gpsd-nmea" / "ublox-zed-f9r.log"
@@ -90,3 +110,20 @@ def test_a_real_log_with_binary_and_comments() -> None:
     assert stats["comments"] > 0 and stats["rejected.garbage"] > 0  # UBX binary between the sentences
     assert sum(1 for r in records if "rejected" in r) == stats["rejected"]
     assert len(records) - stats["rejected"] == stats["messages"]
+
+
+def tag_block(content: str) -> bytes:
+    checksum = 0
+    for byte in content.encode("ascii"):
+        checksum ^= byte
+    return b"\\" + content.encode("ascii") + b"*%02X\\" % checksum
+
+
+def test_an_nmea4_tag_block_gives_the_capture_time() -> None:
+    hdt = encode_ths(Heading(1.0))
+    log = (tag_block("c:1406851200,s:GYRO1") + hdt + tag_block("c:1406851200183") + hdt
+           + tag_block("s:GYRO1") + hdt + b"\\c:1406851200*00\\" + hdt)
+    records = list(decode_nmea0183_log(log))
+    assert [r.get("t_s") for r in records[:3]] == [1406851200.0, pytest.approx(1406851200.183), None]
+    assert [r.get("kind") for r in records[:3]] == ["heading"] * 3
+    assert records[3]["rejected"] == "garbage" and records[4]["kind"] == "heading"  # a bad block's checksum

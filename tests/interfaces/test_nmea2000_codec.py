@@ -10,6 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from nmea2000 import _canboat as canboat
+from nmea2000 import backend
 
 from interfaces.messages import (
     Attitude,
@@ -27,6 +28,7 @@ from interfaces.nmea2000.codec import (
     PGN_ATTITUDE,
     PGN_COG_SOG_RAPID,
     PGN_GNSS_POSITION,
+    PGN_MAGNETIC_VARIATION,
     PGN_POSITION_RAPID,
     PGN_RATE_OF_TURN,
     PGN_VESSEL_HEADING,
@@ -119,7 +121,7 @@ def test_position_rapid_round_trip(lat_deg: float, lon_deg: float, address: int)
 
 
 @given(lat, lon, st.sampled_from([q for q in FixQuality if q != FixQuality.INVALID]),
-       st.floats(0.0, 86399.999), st.integers(0, 252), st.floats(0.0, 50.0), st.floats(-1000.0, 10000.0),
+       st.floats(0.0, 86399.999), st.integers(0, 99), st.floats(0.0, 50.0), st.floats(-1000.0, 10000.0),
        st.integers(0, 30_000))
 @PROPERTY
 def test_gnss_position_round_trip(lat_deg: float, lon_deg: float, quality: FixQuality, utc_s: float, svs: int,
@@ -136,7 +138,7 @@ def test_gnss_position_round_trip(lat_deg: float, lon_deg: float, quality: FixQu
     assert fix.altitude_m is not None and abs(fix.altitude_m - alt_m) <= ALT_M
 
 
-@given(st.floats(0.0, 2.0 * math.pi, exclude_max=True), st.floats(0.0, 600.0))
+@given(st.floats(0.0, 2.0 * math.pi, exclude_max=True), st.floats(0.0, 514.0))
 @PROPERTY
 def test_cog_sog_round_trip(course_rad: float, speed_mps: float) -> None:
     cog = only_item(N2kDecoder(), N2kEncoder(3).cog_sog(CourseOverGround(course_rad, speed_mps)))
@@ -155,7 +157,7 @@ def test_true_heading_round_trip(heading_rad: float) -> None:
     assert 0.0 <= heading.heading_rad < 2.0 * math.pi
 
 
-@given(st.floats(-60.0, 60.0))
+@given(st.floats(-3.0, 3.0))
 @PROPERTY
 def test_rate_of_turn_round_trip(rate_radps: float) -> None:
     rot = only_item(N2kDecoder(), N2kEncoder(3).rate_of_turn(RateOfTurn(rate_radps)))
@@ -426,3 +428,75 @@ def test_assembler_alone_joins_payloads_of_any_length() -> None:
 
 def test_only_129029_is_a_fast_packet_here() -> None:
     assert {PGN_GNSS_POSITION} == FAST_PACKET_PGNS
+
+
+@pytest.mark.parametrize(("pgn", "fields"), [  # wire values (canboat.Raw: the encoder's own range check bypassed)
+    (PGN_ATTITUDE, {"yaw": canboat.Raw(32000), "pitch": 0.0, "roll": 0.0}),  # 3.2 rad: not wrapped into a yaw
+    (PGN_ATTITUDE, {"yaw": 0.0, "pitch": canboat.Raw(20000), "roll": 0.0}),  # 2 rad
+    (PGN_RATE_OF_TURN, {"rate": canboat.Raw(1_920_000_000)}),                # 60 rad/s
+    (PGN_COG_SOG_RAPID, {"cogReference": 0, "cog": 1.0, "sog": canboat.Raw(65500)}),  # 655 m/s
+    (PGN_WIND, {"windSpeed": canboat.Raw(30000), "windAngle": 1.0, "reference": 2}),  # 300 m/s
+    (PGN_GNSS_POSITION, {"latitude": 10.0, "longitude": 20.0, "method": 1, "integrity": 0,
+                         "altitude": canboat.Raw(9 * 10**18), "numberOfSvs": 9, "hdop": 1.0}),  # 9e12 m
+    (PGN_GNSS_POSITION, {"latitude": 10.0, "longitude": 20.0, "method": 1, "integrity": 0,
+                         "hdop": canboat.Raw(-300 & 0xFFFF)}),  # HDOP -3
+])
+def test_physically_impossible_values_are_out_of_range(pgn: int, fields: dict[str, object]) -> None:
+    item = only_item(N2kDecoder(), N2kEncoder(9).frames(pgn, fields))
+    assert isinstance(item, Rejected) and item.reason == "out_of_range", item
+
+
+# --------------------------------------------------------------------------------------------
+# magnetic variation (127258, configured) and address claims (60928)
+
+
+def variation_frame(source: int, variation_rad: float) -> tuple[int, bytes]:
+    payload = backend.DATABASE.encode("magneticVariation", {"sid": 1, "source": 0, "variation": variation_rad})
+    return (canboat.can_id_compose(7, PGN_MAGNETIC_VARIATION, source, 255), payload)
+
+
+def magnetic(source: int, heading_rad: float) -> list[tuple[int, bytes]]:
+    return N2kEncoder(source).vessel_heading(heading_rad, reference="magnetic")
+
+
+def test_a_magnetic_heading_takes_the_variation_the_bus_sends_while_it_is_fresh() -> None:
+    decoder = N2kDecoder(variation_max_age_s=60.0)
+    assert only_item(decoder, magnetic(5, 1.0), t_s=0.0).reason == "magnetic_heading"
+    decoder.decode_frame(*variation_frame(30, -0.2), 1.0)
+    assert only_item(decoder, magnetic(5, 1.0), t_s=2.0).heading_rad == pytest.approx(0.8, abs=1e-4)
+    assert only_item(decoder, magnetic(5, 1.0), t_s=61.5).reason == "magnetic_heading"  # aged out
+    assert decoder.counters["variations"] == 1
+
+
+def test_the_compass_own_variation_first_then_one_sender_kept() -> None:
+    decoder = N2kDecoder()
+    decoder.decode_frame(*variation_frame(40, 0.10), 0.0)
+    decoder.decode_frame(*variation_frame(30, 0.05), 0.1)
+    first = only_item(decoder, magnetic(5, 1.0), t_s=0.2).heading_rad
+    decoder.decode_frame(*variation_frame(40, 0.10), 0.3)  # the other sender speaks last: no jump
+    assert only_item(decoder, magnetic(5, 1.0), t_s=0.4).heading_rad == first == pytest.approx(1.05, abs=1e-4)
+    decoder.decode_frame(*variation_frame(5, -0.3), 0.5)  # the compass's own
+    assert only_item(decoder, magnetic(5, 1.0), t_s=0.6).heading_rad == pytest.approx(0.7, abs=1e-4)
+
+
+def test_a_configured_variation_when_the_bus_has_none() -> None:
+    decoder = N2kDecoder(variation_rad=0.25)
+    assert only_item(decoder, magnetic(5, 1.0)).heading_rad == pytest.approx(1.25, abs=1e-4)
+    with pytest.raises(ValueError):
+        N2kDecoder(variation_rad=4.0)
+
+
+def test_address_claims_name_the_source_and_a_new_device_at_an_address_starts_afresh() -> None:
+    decoder = N2kDecoder()
+    claim = canboat.can_id_compose(6, 60928, 5, 255)
+    name_a, name_b = 0xC0320C0029E0F05A, 0xA0000000001E1234
+    decoder.decode_frame(claim, name_a.to_bytes(8, "little"), 0.0)
+    decoder.decode_frame(*variation_frame(5, 0.3), 0.0)
+    assert decoder.name_of(5) == name_a and decoder.address_of(name_a) == 5
+    decoder.decode_frame(claim, name_b.to_bytes(8, "little"), 1.0)  # another device now at address 5
+    assert decoder.name_of(5) == name_b and decoder.address_of(name_a) is None
+    assert decoder.counters["address_changes"] == 1 and decoder.bus_variation(1.0, 5) is None
+    decoder.decode_frame(canboat.can_id_compose(6, 60928, 9, 255), name_a.to_bytes(8, "little"), 2.0)
+    assert decoder.address_of(name_a) == 9  # the first device came back at another address
+    decoder.decode_frame(claim, b"\x00\x01", 3.0)
+    assert decoder.counters["bad_address_claim"] == 1 and decoder.name_of(5) == name_b

@@ -2,15 +2,18 @@
 
 from __future__ import annotations
 
+import io
 import json
 from pathlib import Path
 
 import pytest
 
+from dpcontrol.cli import main
 from interfaces.messages import FixQuality, Heading, PositionFix
 from interfaces.nmea2000.candump import CandumpFrame, parse_candump_line, read_candump
 from interfaces.nmea2000.codec import N2kEncoder
-from interfaces.nmea2000.logs import decode_candump_log
+from interfaces.nmea2000.logformats import LINKTYPE_CAN_SOCKETCAN, canonical_format, detect_format
+from interfaces.nmea2000.logs import decode_candump_log, decode_nmea2000_log
 
 
 def fmt1(can_id: int, data: bytes, t_s: float) -> str:
@@ -48,6 +51,11 @@ def test_metadata_lines_are_not_frames(line: str) -> None:
     "can0 ZZZZZZZZ [8] 00 00 00 00 00 00 00 00",
     "(1.0) slcan0 09F112CC#FF7",  # odd number of hex digits
     "(x) slcan0 09F112CC#FF72",  # bad timestamp
+    "(nan) slcan0 09F112CC#FF72",  # float() takes these; candump never writes them
+    "(inf) slcan0 09F112CC#FF72",
+    "(-inf) slcan0 09F112CC#FF72",
+    "(1e400) slcan0 09F112CC#FF72",
+    "(1.0) slcan0 09F112CC#F\u00e9F72",  # canboat's parser panics on a multi-byte character
     "(1.0) slcan0 09F112CC#" + "00" * 9,  # nine bytes in a classic frame
     "<0x18eeff01> [8] " + "00 " * 400,
 ])
@@ -103,3 +111,65 @@ def test_read_candump_reports_bad_lines_with_their_number(tmp_path: Path) -> Non
     items = list(read_candump(path))
     assert isinstance(items[0], CandumpFrame) and items[0].line_no == 1
     assert items[1][0] == 3 and items[1][2] == "nonsense"
+
+
+# ----------------------------------------------------------------------------------------------
+# the other capture formats (real files of each: tests/corpora/test_canboat_formats.py)
+
+CANBOAT = Path(__file__).parents[2] / "tests" / "corpora" / "data" / "canboat-n2k"
+
+
+def test_an_unknown_format_is_a_clear_error() -> None:
+    with pytest.raises(ValueError, match="ydwg"):
+        list(decode_nmea2000_log(b"", log_format="nmea2001"))
+    assert canonical_format("FAST") == "plain" and canonical_format("pcapng") == "pcap"
+
+
+@pytest.mark.skipif(not CANBOAT.is_dir(), reason="canboat corpus absent")
+def test_pcapng_reads_as_the_pcap_it_was_converted_from() -> None:
+    """The vendored pcap's packets rewritten into a pcapng container (dpkt's writer) decode identically."""
+    import dpkt  # noqa: PLC0415
+
+    data = (CANBOAT / "can0-1-head.pcap").read_bytes()
+    out = io.BytesIO()
+    writer = dpkt.pcapng.Writer(out, snaplen=65535, linktype=LINKTYPE_CAN_SOCKETCAN)
+    for t_s, packet in dpkt.pcap.Reader(io.BytesIO(data)):
+        writer.writepkt(packet, ts=t_s)
+    assert detect_format(out.getvalue()) == "pcap"
+    from_pcapng = list(decode_nmea2000_log(out.getvalue()))
+    assert from_pcapng == list(decode_nmea2000_log(data)) and len(from_pcapng) > 500
+
+
+def test_a_pcap_of_another_link_type_is_one_clear_rejection() -> None:
+    import dpkt  # noqa: PLC0415
+
+    out = io.BytesIO()
+    writer = dpkt.pcap.Writer(out, linktype=1)  # Ethernet
+    writer.writepkt(b"\x00" * 60, ts=1.0)
+    (record,) = decode_nmea2000_log(out.getvalue())
+    assert record["rejected"] == "garbage" and "not SocketCAN" in record["detail"]
+
+
+@pytest.mark.skipif(not CANBOAT.is_dir(), reason="canboat corpus absent")
+def test_the_command_line_detects_or_is_told_the_format(capsys: pytest.CaptureFixture[str]) -> None:
+    path = str(CANBOAT / "merrimac-ydwg-2020.raw")
+    assert main(["decode", "nmea2000", path, "--stats"]) == 0
+    detected = capsys.readouterr()
+    assert main(["decode", "nmea2000", path, "--format", "ydwg"]) == 0
+    assert capsys.readouterr().out == detected.out and '"format": "ydwg"' in detected.err
+    assert main(["decode", "nmea2000", path, "--format", "candump"]) == 0  # told wrong: every line garbage
+    assert all(json.loads(line)["rejected"] == "garbage" for line in capsys.readouterr().out.splitlines())
+    assert main(["decode", "nmea2000", path, "--format", "seatalk"]) == 2
+    assert "known:" in capsys.readouterr().err
+    assert main(["decode", "nmea0183", path, "--format", "ydwg"]) == 2
+
+
+def test_a_trace_line_python_can_skips_is_reported_not_lost(caplog: pytest.LogCaptureFixture) -> None:
+    trace = (b";$FILEVERSION=1.1\n;$STARTTIME=42176.7577227546\n"
+             b"     1)        48.6  Rx     09F11201  8  FF 50 7A FF 7F FF 7F FD\n  garbage\n"
+             b"     2)        49.2  Rx     09F10D01  8  00 F8 FF 7F 5F B8 FF FF\n")
+    stats: dict[str, object] = {}
+    records = list(decode_nmea2000_log(trace, stats))
+    assert stats["format"] == "trc" and stats["frames_read"] == 2 and stats["garbage_lines"] == 1
+    assert [r.get("rejected") for r in records] == ["magnetic_heading", "garbage"]
+    assert "garbage" in records[1]["detail"] and not caplog.records  # reported here, not as a log warning

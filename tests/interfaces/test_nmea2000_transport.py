@@ -270,3 +270,69 @@ def test_remote_server_process_does_not_outlive_its_parent() -> None:
     if not exited:
         os.kill(pid, signal.SIGKILL)
     assert exited, "the server kept running after its parent exited"
+
+
+# --------------------------------------------------------------------------------------------
+# a sensor known by its NAME (address claims, 60928)
+
+
+def test_a_sensor_configured_by_name_follows_its_device_to_a_new_address() -> None:
+    """On a python-can virtual bus through the daemon's input stage: the reader asks for the address claims
+    (59904 from the null address), a compass routed by NAME is found at whatever address it claims."""
+    from dpcontrol.runtime.config import parse_config  # noqa: PLC0415
+    from dpcontrol.runtime.daemon import InputPump  # noqa: PLC0415
+    from interfaces.messages import Heading as HeadingMessage  # noqa: PLC0415
+    from interfaces.nmea2000.codec import make_can_id  # noqa: PLC0415
+
+    channel = f"names-{uuid.uuid4().hex[:8]}"
+    name = 0xC0320C0029E0F05A
+    config = parse_config({
+        "vessel_id": "names", "vessel": "cybership2",
+        "transports": [{"name": "can0", "protocol": "nmea2000", "interface": "virtual", "channel": channel}],
+        "sensors": [{"name": "gnss1", "kind": "position", "transport": "can0"},
+                    {"name": "gyro1", "kind": "heading", "transport": "can0", "source_name": f"{name:016x}"}]})
+    device = can.Bus(interface="virtual", channel=channel)
+    pump = InputPump(config, clock=time.monotonic)
+    pump.start()
+
+    def send(frames: list[tuple[int, bytes]]) -> None:
+        for can_id, data in frames:
+            device.send(can.Message(arbitration_id=can_id, data=data, is_extended_id=True))
+
+    def routed(deadline_s: float = 0.5) -> list[Measurement]:
+        out: list[Measurement] = []
+        end = time.monotonic() + deadline_s
+        while time.monotonic() < end:
+            pump.drain(out, [], [])
+            time.sleep(0.02)
+        return out
+
+    try:
+        request = device.recv(5.0)  # the reader's request for everybody's claim
+        assert request is not None and request.arbitration_id == make_can_id(6, 59904, 254, 255)
+        assert int.from_bytes(request.data[:3], "little") == 60928
+        send(N2kEncoder(40).heading(HeadingMessage(1.0)))  # before its claim: nobody knows who 40 is
+        assert routed() == []
+        send([(make_can_id(6, 60928, 40, 255), name.to_bytes(8, "little"))])
+        send(N2kEncoder(40).heading(HeadingMessage(1.0)) + N2kEncoder(41).heading(HeadingMessage(2.0)))
+        assert [(m.source, round(m.message.heading_rad, 3)) for m in routed()] == [("gyro1", 1.0)]
+        send([(make_can_id(6, 60928, 42, 255), name.to_bytes(8, "little"))])  # the compass re-claims at 42
+        send(N2kEncoder(40).heading(HeadingMessage(1.5)) + N2kEncoder(42).heading(HeadingMessage(3.0)))
+        assert [(m.source, round(m.message.heading_rad, 3)) for m in routed()] == [("gyro1", 3.0)]
+    finally:
+        pump.close()
+        device.shutdown()
+
+
+def test_source_name_is_checked_at_load() -> None:
+    from dpcontrol.runtime.config import parse_config  # noqa: PLC0415
+
+    base = {"vessel_id": "names", "vessel": "cybership2",
+            "transports": [{"name": "can0", "protocol": "nmea2000", "interface": "virtual", "channel": "x"},
+                           {"name": "serial", "protocol": "nmea0183", "port": "/dev/null"}],
+            "sensors": [{"name": "gyro1", "kind": "heading", "transport": "can0", "source_name": "c0320c00"}]}
+    with pytest.raises(ConfigError, match="source_name"):
+        parse_config(base)
+    base["sensors"][0].update(transport="serial", source_name="c0320c0029e0f05a")
+    with pytest.raises(ConfigError, match="source_name"):
+        parse_config(base)

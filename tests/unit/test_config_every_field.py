@@ -51,11 +51,11 @@ VALID: dict[str, Any] = {
 SENSOR_FIELDS = {  # (sensor index, field) → bad value
     (0, "name"): 12, (0, "kind"): 3, (0, "transport"): 1.5, (0, "rate_hz"): "fast", (0, "sigma_m"): "small",
     (0, "lever_arm_m"): "bow", (0, "talker"): 7, (0, "sentences"): "GGA", (1, "system_id"): "one",
-    (2, "source_address"): "seven", (2, "sigma_deg"): "tiny", (2, "rate_hz"): 0,
+    (2, "source_address"): "seven", (2, "sigma_deg"): "tiny", (2, "rate_hz"): 0, (2, "source_name"): 7,
 }
 TRANSPORT_FIELDS = {
-    (0, "name"): 5, (0, "protocol"): 183, (0, "port"): 0, (0, "baud"): "fast",
-    (1, "interface"): 1, (1, "channel"): [0], (1, "options"): "fd",
+    (0, "name"): 5, (0, "protocol"): 183, (0, "port"): 0, (0, "baud"): "fast", (0, "max_sentence_chars"): "long",
+    (1, "interface"): 1, (1, "channel"): [0], (1, "options"): "fd", (1, "variation_deg"): "east",
     (2, "url"): 14550, (2, "heartbeat_timeout_s"): "long", (2, "signing_key_hex"): "secret",
 }
 THRUSTER_FIELDS = {
