@@ -28,10 +28,11 @@ from typing import Any, TextIO
 
 from dpcontrol.arguments import add_zenoh_arguments, finite_number, positive_number
 from interfaces.messages import Rejected
-from interfaces.zenoh.config import LOCAL_DAEMON_CONNECT, ZenohConfig, ZenohOpenError
+from interfaces.zenoh.config import LOCAL_DAEMON_CONNECT, ZenohConfig, ZenohOpenError, tool_config
 from interfaces.zenoh.keys import validate_vessel_id
 from interfaces.zenoh.node import LatestSlot, ZenohNode
 from interfaces.zenoh.schemas import MODES, parse_message, parse_setpoint, setpoint_payload
+from interfaces.zenoh.security import ZenohSecurity
 
 #: Longest wait for the controller's answer by default [s]: a controller answers in the next cycle
 #: (100 ms at 10 Hz); the rest is for zenoh to connect and discover on a loaded computer.
@@ -177,13 +178,14 @@ def _print(answer: Answer, vessel: str, as_json: bool, out: TextIO, err: TextIO)
 
 def run_setpoint(vessel: str, fields: Mapping[str, Any], *, connect: Sequence[str] = LOCAL_DAEMON_CONNECT,
                  listen: Sequence[str] = (), timeout_s: float = DEFAULT_TIMEOUT_S, as_json: bool = False,
-                 out: TextIO | None = None, err: TextIO | None = None) -> int:
-    """Validate, send and report one request (the ``dpcontrol setpoint`` command); returns the exit code."""
+                 out: TextIO | None = None, err: TextIO | None = None, security: ZenohSecurity | None = None) -> int:
+    """Validate, send and report one request (the ``dpcontrol setpoint`` command); returns the exit code.
+    ``security``: this tool's TLS identity (a console's) on a secured vessel network."""
     out = out or sys.stdout
     err = err or sys.stderr
     try:
         validate_vessel_id(vessel)
-        config = ZenohConfig(listen=tuple(listen), connect=tuple(connect))
+        config = ZenohConfig(listen=tuple(listen), connect=tuple(connect), security=security)
     except ValueError as error:
         err.write(f"dpcontrol setpoint: {error}\n")
         return EXIT_USAGE
@@ -234,5 +236,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run_from_args(args: argparse.Namespace) -> int:
     """Run :func:`run_setpoint` from parsed :func:`add_arguments` options."""
-    return run_setpoint(args.vessel, request_fields(args), connect=tuple(args.connect or LOCAL_DAEMON_CONNECT),
-                        listen=tuple(args.listen or ()), timeout_s=args.timeout, as_json=args.json)
+    try:
+        config = tool_config(args)
+    except ValueError as error:
+        print(f"dpcontrol setpoint: {error}", file=sys.stderr)
+        return EXIT_USAGE
+    return run_setpoint(args.vessel, request_fields(args), connect=config.connect, listen=config.listen,
+                        timeout_s=args.timeout, as_json=args.json, security=config.security)

@@ -34,7 +34,7 @@ from typing import Any
 import zenoh
 
 from dpcontrol.models.schema import ConfigError, Section, join
-from interfaces.zenoh.security import ZenohSecurity
+from interfaces.zenoh.security import ZenohSecurity, security_from_args
 
 log = logging.getLogger(__name__)
 
@@ -247,3 +247,20 @@ def open_session(config: ZenohConfig, vessel: str | None = None) -> zenoh.Sessio
         reason = str(exc).split(" at /", 1)[0]  # drop zenoh's Rust source location
         raise ZenohOpenError(f"cannot open zenoh session (mode={config.mode}, listen={list(config.listen)}, "
                              f"connect={list(config.connect)}): {reason}") from exc
+
+
+def tool_config(args: Any, default_connect: tuple[str, ...] = LOCAL_DAEMON_CONNECT,
+                identities: dict[str, str] | None = None) -> ZenohConfig:
+    """The session of a tool that connects to a vessel (``dpcontrol monitor``/``setpoint``/``console``), from
+    its ``--connect``/``--listen`` and TLS options (:func:`interfaces.zenoh.security.add_tls_arguments`):
+    the one way every tool gets its secured zenoh configuration.
+
+    Raises
+    ------
+    ValueError
+        A bad endpoint, ``--tls-dir`` without ``--identity``, or TLS files that will not do (the message says
+        which and why).
+    """
+    return ZenohConfig(listen=tuple(getattr(args, "listen", None) or ()),
+                       connect=tuple(getattr(args, "connect", None) or default_connect),
+                       security=security_from_args(args, identities))

@@ -43,7 +43,7 @@ from pathlib import Path
 from typing import Any
 
 from dpcontrol.models.schema import ConfigError, Section, join
-from interfaces.zenoh.pki import NAME_PATTERN, IdentityFiles
+from interfaces.zenoh.pki import NAME_PATTERN, IdentityFiles, PkiError, check_identity_files
 
 ROLE_NAMES: tuple[str, ...] = ("controller", "drives", "console", "monitor")
 _TELEMETRY = ("estimate", "mmae", "control", "status")
@@ -289,7 +289,8 @@ def security_from_args(args: argparse.Namespace, identities: Mapping[str, str] |
     Raises
     ------
     ValueError
-        ``--tls-dir`` without ``--identity``.
+        ``--tls-dir`` without ``--identity``; a :class:`~interfaces.zenoh.pki.PkiError` when the files are
+        missing, expired, not signed by the CA in that directory, or not ``--identity``'s.
     """
     directory = getattr(args, "tls_dir", None)
     if not directory:
@@ -297,4 +298,26 @@ def security_from_args(args: argparse.Namespace, identities: Mapping[str, str] |
     name = getattr(args, "identity", None)
     if not name:
         raise ValueError("--tls-dir needs --identity NAME (this tool's certificate: <dir>/<NAME>.pem)")
-    return ZenohSecurity(IdentityFiles.in_dir(_expand(directory), name), dict(identities or {}), name)
+    security = ZenohSecurity(IdentityFiles.in_dir(_expand(directory), name), dict(identities or {}), name)
+    check_identity_files(security.files, expected_name=name)  # type: ignore[arg-type]  # a clear error, not zenoh's
+    return security
+
+
+def check_security(security: ZenohSecurity | None, role: str) -> str:
+    """Verify this node's TLS files (see :func:`interfaces.zenoh.pki.check_identity_files`) and that its own
+    certificate name holds ``role`` in the identity map; a one-line description of what is in force.
+
+    Raises
+    ------
+    interfaces.zenoh.pki.PkiError
+        The first thing wrong, naming the file or the identity.
+    """
+    if security is None or security.files is None:
+        return "zenoh: plaintext (no tls)" + (", insecure: true" if security is not None and security.insecure else "")
+    name = check_identity_files(security.files, expected_name=security.expected_name)
+    if security.identities and security.role_of(name) != role:
+        raise PkiError(f"zenoh.identities: this node's certificate name {name!r} has role "
+                       f"{security.role_of(name)!r}, expected {role!r} (the other nodes' access control "
+                       "names it by that role)")
+    roles = ", ".join(f"{n}={r}" for n, r in sorted(security.identities.items()))
+    return f"zenoh: mutual TLS as {name!r} (CA {security.files.ca}); access control by role: {roles or 'off'}"
