@@ -66,12 +66,17 @@ class Answer:
         The request's sequence number.
     controller_t_s : float or None
         The controller's time of the step that took the request [s] (its monotonic clock).
+    role, identity : str or None
+        The role and identity (certificate common name) the controller took the request under (``None`` on an
+        unauthenticated network).
     """
 
     outcome: str
     detail: str
     seq: int
     controller_t_s: float | None = None
+    role: str | None = None
+    identity: str | None = None
 
     @property
     def exit_code(self) -> int:
@@ -91,7 +96,8 @@ def _answer_to(seq: int, status: Mapping[str, Any] | None) -> Answer | None:
     candidates = [*(status.get("requests") or ()), status.get("request")]
     for request in candidates:
         if isinstance(request, Mapping) and request.get("seq") == seq:
-            return Answer(str(request.get("outcome")), str(request.get("detail", "")), seq, request.get("t_s"))
+            return Answer(str(request.get("outcome")), str(request.get("detail", "")), seq, request.get("t_s"),
+                          request.get("role"), request.get("identity"))
     return None
 
 
@@ -166,12 +172,14 @@ def send_request(node: ZenohNode, fields: Mapping[str, Any], *, timeout_s: float
 def _print(answer: Answer, vessel: str, as_json: bool, out: TextIO, err: TextIO) -> None:
     if as_json:
         out.write(json.dumps({"vessel": vessel, "seq": answer.seq, "outcome": answer.outcome,
-                              "detail": answer.detail, "controller_t_s": answer.controller_t_s}) + "\n")
+                              "detail": answer.detail, "controller_t_s": answer.controller_t_s,
+                              "role": answer.role, "identity": answer.identity}) + "\n")
         return
+    by = f" (taken from {answer.role} '{answer.identity}')" if answer.identity else ""
     if answer.outcome == "applied":
-        out.write(f"{vessel}: applied: {answer.detail}\n")
+        out.write(f"{vessel}: applied: {answer.detail}{by}\n")
     elif answer.outcome == "refused":
-        err.write(f"dpcontrol setpoint: {vessel}: refused: {answer.detail}\n")
+        err.write(f"dpcontrol setpoint: {vessel}: refused: {answer.detail}{by}\n")
     else:
         err.write(f"dpcontrol setpoint: {answer.detail}\n")
 
