@@ -874,11 +874,12 @@ class Daemon:
         taken: list[SetpointRequest] = []
         for item in received:
             identity = links.get(item.source_zid) if item.source_zid is not None else None
-            role = security.role_of(identity)
+            roles = security.roles_of(identity)
             if identity is None:
-                consoles = sorted({n for n in links.values() if n is not None and security.role_of(n) == "console"})
+                consoles = sorted({n for n in links.values() if "console" in security.roles_of(n)})
                 identity = consoles[0] if len(consoles) == 1 else f"one of {', '.join(consoles) or 'none'}"
-                role = "console"  # (the access control let only console identities put it)
+                roles = ("console",)  # (the access control let only console identities put it)
+            role = "console" if "console" in roles else "/".join(roles) or "none"
             if role != "console":
                 text = (f"operator request seq {item.message.seq} from {identity!r} (role {role}) refused: only "
                         "console identities may command")

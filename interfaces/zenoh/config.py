@@ -250,7 +250,7 @@ def open_session(config: ZenohConfig, vessel: str | None = None) -> zenoh.Sessio
 
 
 def tool_config(args: Any, default_connect: tuple[str, ...] = LOCAL_DAEMON_CONNECT,
-                identities: dict[str, str] | None = None) -> ZenohConfig:
+                identities: dict[str, tuple[str, ...]] | None = None) -> ZenohConfig:
     """The session of a tool that connects to a vessel (``dpcontrol monitor``/``setpoint``/``console``), from
     its ``--connect``/``--listen`` and TLS options (:func:`interfaces.zenoh.security.add_tls_arguments`):
     the one way every tool gets its secured zenoh configuration.

@@ -106,8 +106,12 @@ def _rules_for(role: str, prefix: str) -> list[dict[str, Any]]:
     return rules
 
 
-def access_control(vessel: str, identities: Mapping[str, str]) -> dict[str, Any]:
-    """Zenoh's ``access_control`` section for a node of ``vessel`` given ``{common name: role}``.
+def _roles(held: str | tuple[str, ...] | list[str]) -> tuple[str, ...]:
+    return (held,) if isinstance(held, str) else tuple(held)
+
+
+def access_control(vessel: str, identities: Mapping[str, str | tuple[str, ...]]) -> dict[str, Any]:
+    """Zenoh's ``access_control`` section for a node of ``vessel`` given ``{common name: role or roles}``.
 
     Default deny; one subject per role listing the common names mapped to it; one policy per role binding
     its subject to its rules. Roles nobody holds are left out (a policy with an empty subject is refused).
@@ -117,7 +121,7 @@ def access_control(vessel: str, identities: Mapping[str, str]) -> dict[str, Any]
     subjects: list[dict[str, Any]] = []
     policies: list[dict[str, Any]] = []
     for role in ROLE_NAMES:
-        names = sorted(name for name, held in identities.items() if held == role)
+        names = sorted(name for name, held in identities.items() if role in _roles(held))
         if not names:
             continue
         role_rules = _rules_for(role, prefix)
@@ -142,9 +146,11 @@ class ZenohSecurity:
     ----------
     files : IdentityFiles or None
         The vessel CA, this node's certificate and key (``None``: plaintext, only where allowed).
-    identities : mapping of str to str
-        Certificate common name → role (``controller``, ``drives``, ``console``, ``monitor``). Empty: no
-        access control in this session (a tool that only connects: the nodes it reaches enforce theirs).
+    identities : mapping of str to tuple of str
+        Certificate common name → its roles (``controller``, ``drives``, ``console``, ``monitor``; usually one:
+        the HIL emulator stands for both the drives and the scenario's operator, ``(drives, console)``). Empty:
+        no access control in this session (a tool that only connects: the nodes it reaches enforce theirs).
+        A single role may be given as a string.
     expected_name : str or None
         The common name this node's certificate must carry (checked by ``check-config``).
     insecure : bool
@@ -152,16 +158,20 @@ class ZenohSecurity:
     """
 
     files: IdentityFiles | None = None
-    identities: Mapping[str, str] = field(default_factory=dict)
+    identities: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
     expected_name: str | None = None
     insecure: bool = False
 
     def __post_init__(self) -> None:
-        for name, role in self.identities.items():
+        identities = {name: _roles(held) for name, held in self.identities.items()}
+        object.__setattr__(self, "identities", identities)
+        for name, roles in identities.items():
             if NAME_PATTERN.fullmatch(name) is None:
                 raise ValueError(f"identity {name!r}: expected a certificate common name from [A-Za-z0-9_.-]")
-            if role not in ROLE_NAMES:
-                raise ValueError(f"identity {name!r}: unknown role {role!r} (expected one of {', '.join(ROLE_NAMES)})")
+            for role in roles or ("(none)",):
+                if role not in ROLE_NAMES:
+                    raise ValueError(f"identity {name!r}: unknown role {role!r} "
+                                     f"(expected one of {', '.join(ROLE_NAMES)})")
         if self.identities and self.files is None:
             raise ValueError("identities (access control by certificate name) need tls certificates")
 
@@ -169,9 +179,9 @@ class ZenohSecurity:
     def tls(self) -> bool:
         return self.files is not None
 
-    def role_of(self, name: str | None) -> str | None:
-        """The role of a certificate common name (``None``: unknown or no name)."""
-        return None if name is None else self.identities.get(name)
+    def roles_of(self, name: str | None) -> tuple[str, ...]:
+        """The roles of a certificate common name (none: unknown or no name)."""
+        return () if name is None else self.identities.get(name, ())
 
     def settings(self, vessel: str | None) -> dict[str, Any]:
         """Zenoh configuration entries (``{json5 key path: value}``): TLS with mTLS, and the ACL when
@@ -227,11 +237,17 @@ class ZenohSecurity:
                 files = IdentityFiles(_expand(ca), _expand(cert), _expand(key))
             else:
                 raise ConfigError(join(path, "tls"), "either dir + identity, or ca + cert + key", tls)
-        names: dict[str, str] = {}
+        names: dict[str, tuple[str, ...]] = {}
         if identities is not None:
             sec = Section.of(identities, join(path, "identities"))
             for name in list(sec.data):
-                names[name] = sec.string(name, choices=ROLE_NAMES)
+                held = sec.raw(name)
+                where = join(join(path, "identities"), name)
+                if isinstance(held, str):
+                    held = [held]
+                if not isinstance(held, list) or not held or any(r not in ROLE_NAMES for r in held):
+                    raise ConfigError(where, f"a role or a list of roles from {', '.join(ROLE_NAMES)}", held)
+                names[name] = tuple(held)
             sec.finish()
         try:
             return cls(files, names, expected, insecure)
@@ -280,7 +296,8 @@ def add_tls_arguments(parser: argparse.ArgumentParser) -> None:
                        help="this tool's certificate name (default $DPCONTROL_IDENTITY)")
 
 
-def security_from_args(args: argparse.Namespace, identities: Mapping[str, str] | None = None) -> ZenohSecurity | None:
+def security_from_args(args: argparse.Namespace,
+                       identities: Mapping[str, tuple[str, ...]] | None = None) -> ZenohSecurity | None:
     """The :class:`ZenohSecurity` of :func:`add_tls_arguments`'s options (``None`` when no ``--tls-dir``).
 
     ``identities`` (``{name: role}``) turns on this session's own access control (a node others connect to:
@@ -315,9 +332,9 @@ def check_security(security: ZenohSecurity | None, role: str) -> str:
     if security is None or security.files is None:
         return "zenoh: plaintext (no tls)" + (", insecure: true" if security is not None and security.insecure else "")
     name = check_identity_files(security.files, expected_name=security.expected_name)
-    if security.identities and security.role_of(name) != role:
-        raise PkiError(f"zenoh.identities: this node's certificate name {name!r} has role "
-                       f"{security.role_of(name)!r}, expected {role!r} (the other nodes' access control "
-                       "names it by that role)")
-    roles = ", ".join(f"{n}={r}" for n, r in sorted(security.identities.items()))
+    if security.identities and role not in security.roles_of(name):
+        held = "/".join(security.roles_of(name)) or "none"
+        raise PkiError(f"zenoh.identities: this node's certificate name {name!r} has role {held!r}, expected "
+                       f"{role!r} (the other nodes' access control names it by that role)")
+    roles = ", ".join(f"{n}={'/'.join(r)}" for n, r in sorted(security.identities.items()))
     return f"zenoh: mutual TLS as {name!r} (CA {security.files.ca}); access control by role: {roles or 'off'}"

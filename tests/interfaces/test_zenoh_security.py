@@ -22,7 +22,8 @@ from interfaces.zenoh.security import (
 )
 
 VESSEL = "sec1"
-IDENTITIES = {"dp": "controller", "drives": "drives", "bridge": "console", "shore": "monitor"}
+IDENTITIES = {"dp": "controller", "drives": "drives", "bridge": "console", "shore": "monitor",
+              "hil": ("drives", "console")}  # (the HIL emulator stands for the drives and the operator)
 # long enough for a TLS handshake and the declarations on a loaded 2-core host, short enough to keep the test brief
 SETTLE_S = 1.0
 
@@ -32,7 +33,7 @@ def vessel_pki(tmp_path_factory: pytest.TempPathFactory) -> Path:
     d = tmp_path_factory.mktemp("pki")
     pki.init_ca(d, VESSEL)
     for name, role in IDENTITIES.items():
-        pki.issue(d, role, name)
+        pki.issue(d, role if isinstance(role, str) else "+".join(role), name)
     pki.issue(d, "console", "stranger")  # signed by the vessel CA, but mapped to no role
     other = d / "other"
     pki.init_ca(other, "elsewhere")
@@ -66,7 +67,7 @@ def test_acl_is_zenoh_access_control_with_default_deny() -> None:
     acl = access_control(VESSEL, IDENTITIES)
     assert acl["enabled"] and acl["default_permission"] == "deny"
     subjects = {s["id"]: s["cert_common_names"] for s in acl["subjects"]}
-    assert subjects["console-identities"] == ["bridge"] and subjects["monitor-identities"] == ["shore"]
+    assert subjects["console-identities"] == ["bridge", "hil"] and subjects["monitor-identities"] == ["shore"]
     monitor_puts = [r for r in acl["rules"] if r["id"].startswith("monitor-") and "put" in r["messages"]
                     and r["flows"] == ["ingress"]]
     assert monitor_puts == []  # the shore may put nothing
@@ -200,3 +201,28 @@ def test_check_identity_files_explains_what_is_wrong(vessel_pki: Path, tmp_path:
     assert (d / "bridge.key").stat().st_mode & 0o077 == 0
     with pytest.raises(pki.PkiError, match="a CA exists already"):
         pki.init_ca(d, VESSEL)
+
+
+@pytest.mark.timeout(60)
+def test_an_identity_with_two_roles_has_the_rights_of_both(vessel_pki: Path) -> None:
+    daemon, endpoint = _daemon(vessel_pki)
+    hil = None
+    try:
+        setpoints = daemon.subscribe("setpoint", Inbox())
+        feedback = daemon.subscribe("feedback", LatestSlot())
+        status = daemon.publisher("status")
+        hil = _client(vessel_pki, endpoint, "hil")
+        heard = hil.subscribe("status", LatestSlot(), parse=bytes)
+        sp, fb = hil.publisher("setpoint"), hil.publisher("feedback")
+        assert sp.wait_matched(10.0) and fb.wait_matched(10.0)
+        sp.put(setpoint_payload(t_s=1.0, seq=sp.next_seq(), mode="auto_position"))
+        fb.put(feedback_payload(t_s=1.0, seq=fb.next_seq(), names=["tunnel"], thrust_n=[1.0], azimuth_rad=[0.0],
+                                ready=[True]))
+        assert setpoints.sink.wait_count(1, 5.0) and feedback.sink.wait_count(1, 5.0)
+        time.sleep(0.2)
+        status.put(b"{}")
+        assert heard.sink.wait_count(1, 5.0)
+    finally:
+        if hil is not None:
+            hil.close()
+        daemon.close()
