@@ -331,6 +331,11 @@ def check_security(security: ZenohSecurity | None, role: str) -> str:
     """
     if security is None or security.files is None:
         return "zenoh: plaintext (no tls)" + (", insecure: true" if security is not None and security.insecure else "")
+    unset = [str(p) for p in (security.files.ca, security.files.cert, security.files.key) if "$" in str(p)]
+    if unset:
+        raise PkiError(f"zenoh.tls: {unset[0]}: a variable is not set (CREDENTIALS_DIRECTORY is set by systemd's "
+                       "LoadCredential= inside the unit; outside it, check a copy of the configuration that gives "
+                       "the files' own paths)")
     name = check_identity_files(security.files, expected_name=security.expected_name)
     if security.identities and role not in security.roles_of(name):
         held = "/".join(security.roles_of(name)) or "none"
