@@ -213,8 +213,10 @@ def run_setpoint(vessel: str, fields: Mapping[str, Any], *, connect: Sequence[st
         node.close()
     if answer.outcome in ("no_controller", "no_answer"):
         where = ", ".join([*(f"connecting to {e}" for e in connect), *(f"listening on {e}" for e in listen)])
+        secured = "" if security is None else (f"; on a secured network, does '{security.expected_name}' hold the "
+                                                 "console role in its zenoh.identities?")
         answer = Answer(answer.outcome, f"{answer.detail} ({where or 'no endpoints'}): is `dpcontrol run` up, "
-                        "with this vessel_id, and is the endpoint its zenoh.listen?", answer.seq)
+                        f"with this vessel_id, and is the endpoint its zenoh.listen{secured}?", answer.seq)
     _print(answer, vessel, as_json, out, err)
     return answer.exit_code
 

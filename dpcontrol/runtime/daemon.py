@@ -54,8 +54,9 @@ from interfaces.recorder import Recorder, TopicSpec, default_topics
 from interfaces.systemd import SystemdNotifier
 from interfaces.zenoh import schemas
 from interfaces.zenoh.node import LatestSlot, Received, ZenohNode
+from interfaces.zenoh.pki import days_left
 from interfaces.zenoh.schemas import SetpointRequest
-from interfaces.zenoh.security import unprotected_endpoints
+from interfaces.zenoh.security import EXPIRY_WARNING_DAYS, unprotected_endpoints
 
 log = logging.getLogger(__name__)
 
@@ -522,6 +523,12 @@ class Daemon:
                     "that network can command the vessel")
             log.warning("%s", text)
             self.alarms.raise_(self.clock(), "zenoh.insecure", Severity.WARNING, text)  # standing: never cleared
+        if security is not None and security.files is not None:
+            days = days_left(security.files)
+            if days < EXPIRY_WARNING_DAYS:  # (links open stay when it ends; new ones, a restart's, are refused)
+                self.alarms.raise_(self.clock(), "zenoh.certificate_expiring", Severity.WARNING,
+                                   f"zenoh certificate or CA expires in {days:.0f} days: issue new ones "
+                                   "(dpcontrol pki issue) before then")
         # One controller per vessel: two would command the same thrusters, each fighting the other's
         # forces. Refuse to start while another holds the controller token (a second `dpcontrol run` by
         # hand beside the service, a standby computer started in error); a controller that joins later

@@ -253,6 +253,17 @@ def check_identity_files(files: IdentityFiles, *, expected_name: str | None = No
     return name
 
 
+def days_left(files: IdentityFiles, *, now: dt.datetime | None = None) -> float:
+    """Days until the first of the CA and the certificate expires (negative: expired; ``inf``: unreadable,
+    which :func:`check_identity_files` reports)."""
+    when = now or _now()
+    try:
+        ends = [_load_cert(path, "certificate").not_valid_after_utc for path in (files.ca, files.cert)]
+    except PkiError:
+        return float("inf")
+    return min(ends).timestamp() / 86400.0 - when.timestamp() / 86400.0
+
+
 def _has(cert: x509.Certificate, kind: type[x509.ExtensionType]) -> bool:
     try:
         cert.extensions.get_extension_for_class(kind)

@@ -43,9 +43,11 @@ from pathlib import Path
 from typing import Any
 
 from dpcontrol.models.schema import ConfigError, Section, join
-from interfaces.zenoh.pki import NAME_PATTERN, IdentityFiles, PkiError, check_identity_files
+from interfaces.zenoh.pki import NAME_PATTERN, IdentityFiles, PkiError, check_identity_files, days_left
 
 ROLE_NAMES: tuple[str, ...] = ("controller", "drives", "console", "monitor")
+#: A certificate (or the CA) closer than this to its end is warned about (check-config, a daemon alarm) [days].
+EXPIRY_WARNING_DAYS = 30.0
 _TELEMETRY = ("estimate", "mmae", "control", "status")
 
 
@@ -197,8 +199,9 @@ class ZenohSecurity:
                 # peers are named by certificate (the ACL's subjects), not by host name: the vessel network's
                 # addresses need not be in each certificate
                 "transport/link/tls/verify_name_on_connect": False,
-                # an expired certificate ends the link it opened, not only new ones
-                "transport/link/tls/close_link_on_expiration": True,
+                # A certificate that expires during an operation must not cut the thrusters' link: the links
+                # open stay, new ones are refused (check-config and the daemon's alarm warn weeks ahead).
+                "transport/link/tls/close_link_on_expiration": False,
             })
         if self.identities:
             if vessel is None:
@@ -342,4 +345,7 @@ def check_security(security: ZenohSecurity | None, role: str) -> str:
         raise PkiError(f"zenoh.identities: this node's certificate name {name!r} has role {held!r}, expected "
                        f"{role!r} (the other nodes' access control names it by that role)")
     roles = ", ".join(f"{n}={'/'.join(r)}" for n, r in sorted(security.identities.items()))
-    return f"zenoh: mutual TLS as {name!r} (CA {security.files.ca}); access control by role: {roles or 'off'}"
+    days = days_left(security.files)
+    soon = f"; WARNING: a certificate expires in {days:.0f} days" if days < EXPIRY_WARNING_DAYS else ""
+    return (f"zenoh: mutual TLS as {name!r} (CA {security.files.ca}); access control by role: "
+            f"{roles or 'off'}{soon}")

@@ -32,7 +32,8 @@ from interfaces.zenoh.security import ZenohSecurity
 pytestmark = pytest.mark.hil
 
 VESSEL = "secured"
-IDENTITIES = {"dp": "controller", "drives": "drives", "bridge": "console", "shore": "monitor"}
+IDENTITIES = {"dp": "controller", "dp-soon": "controller", "drives": "drives", "bridge": "console",
+              "shore": "monitor"}
 TIMEOUT = "30"  # generous bound for zenoh on a loaded 2-core machine; an answer takes one cycle
 
 
@@ -143,6 +144,8 @@ def test_the_shore_reads_but_never_commands_the_bridge_commands(vessel: tuple[Da
         found = [r for rec in read_records(tmp / "blackbox", ["cycle"]) for r in rec.payload["requests"]
                  if r["seq"] == seq]
     assert found and found[0]["role"] == "console" and found[0]["identity"] == "bridge"
+    recorded = [r for rec in read_records(tmp / "blackbox", ["cycle"]) for r in rec.payload["requests"]]
+    assert {(r["role"], r["identity"]) for r in recorded} == {("console", "bridge")}  # nothing from the shore
 
 
 @pytest.mark.timeout(60)
@@ -195,7 +198,12 @@ def test_check_config_verifies_the_certificates(tmp_path: Path, capsys: pytest.C
         return code, captured.out + captured.err
 
     code, text = check(dir=str(tls), identity="dp")
-    assert code == 0 and "mutual TLS as 'dp'" in text, text
+    assert code == 0 and "mutual TLS as 'dp'" in text and "WARNING" not in text, text
+    assert main(["pki", "issue", "controller", "dp-soon", "--dir", str(tls), "--days", "10"]) == 0
+    code, text = check(dir=str(tls), identity="dp-soon")
+    assert code == 0 and "WARNING: a certificate expires in 10 days" in text, text
+    code, text = check(dir="$CREDENTIALS_DIRECTORY_UNSET_HERE", identity="dp")
+    assert code == 2 and "a variable is not set" in text, text
     code, text = check(dir=str(tls), identity="nobody")
     assert code == 2 and "nobody.pem: no such file" in text
     code, text = check(ca=str(tls / "ca.pem"), cert=str(tls / "bridge.pem"), key=str(tls / "bridge.key"),
