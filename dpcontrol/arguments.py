@@ -6,6 +6,7 @@ import argparse
 import math
 
 from interfaces.zenoh.config import LOCAL_DAEMON_CONNECT
+from interfaces.zenoh.security import add_tls_arguments
 
 
 def _number(text: str) -> float:
@@ -38,9 +39,12 @@ def finite_number(text: str) -> float:
 
 
 def add_zenoh_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--vessel``, ``--connect`` and ``--listen``: how an operator's tool finds a vessel's controller over zenoh."""
+    """``--vessel``, ``--connect``, ``--listen`` and the TLS options (``--tls-dir``, ``--identity``): how an
+    operator's tool finds a vessel's controller over zenoh. :func:`interfaces.zenoh.config.tool_config` turns
+    them into the tool's session configuration."""
     parser.add_argument("--vessel", required=True, help="vessel ID (zenoh keys dp/<vessel>/...)")
     parser.add_argument("--connect", action="append", metavar="ENDPOINT",
                         help=f"zenoh endpoint of the daemon (repeatable; default {LOCAL_DAEMON_CONNECT[0]})")
     parser.add_argument("--listen", action="append", metavar="ENDPOINT", default=[],
                         help="zenoh endpoint to listen on (default: none)")
+    add_tls_arguments(parser)

@@ -1,5 +1,5 @@
 """``dpcontrol`` command line (composition layer): run, check-config, monitor, console, setpoint, bench, decode,
-replay, log.
+replay, log, pki.
 
 Exit codes: 0 success; 1 runtime failure; 2 invalid usage or configuration, or an input file named on the
 command line that cannot be read (missing, a folder, no permission) — the message names the file, the key path
@@ -40,6 +40,7 @@ def _configure_logging(verbose: bool) -> None:
 def _cmd_run(args: argparse.Namespace) -> int:
     from dpcontrol.runtime.config import load_config  # noqa: PLC0415
     from dpcontrol.runtime.daemon import Daemon  # noqa: PLC0415
+    from interfaces.zenoh.security import PkiError, check_security  # noqa: PLC0415
 
     _configure_logging(args.verbose)
     if args.stats_out:  # checked before the run: the stats are written when it ends, maybe hours later
@@ -51,8 +52,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
             return 2
     try:
         config = load_config(args.config)
+        check_security(config.zenoh.security, "controller")  # zenoh's own message would be a Rust error
         daemon = Daemon(config)  # (builds the controller: settings that pass one by one but build nothing)
-    except ConfigError as error:
+    except (ConfigError, PkiError) as error:
         print(f"dpcontrol: invalid configuration: {error}", file=sys.stderr)
         return 2
     code = daemon.run(duration_s=args.duration)
@@ -78,17 +80,19 @@ def _cmd_run(args: argparse.Namespace) -> int:
 def _cmd_check_config(args: argparse.Namespace) -> int:
     from dpcontrol.runtime.config import load_config  # noqa: PLC0415
     from dpcontrol.runtime.step import DpController  # noqa: PLC0415
+    from interfaces.zenoh.security import PkiError, check_security  # noqa: PLC0415
 
     try:
         config = load_config(args.file)
         DpController(config)  # what the daemon builds first: settings that pass alone but build nothing
-    except ConfigError as error:
+        security = check_security(config.zenoh.security, "controller")
+    except (ConfigError, PkiError) as error:
         print(f"dpcontrol: invalid configuration: {error}", file=sys.stderr)
         return 2
     sensors = ", ".join(f"{s.name} ({s.kind.value})" for s in config.sensors)
     print(f"{args.file}: OK — vessel {config.vessel.name} as '{config.vessel_id}', {config.rate_hz:g} Hz, "
           f"estimator {config.estimator.kind}, control {config.control.kind}, "
-          f"{len(config.vessel.thrusters)} thrusters, sensors: {sensors}")
+          f"{len(config.vessel.thrusters)} thrusters, sensors: {sensors}; {security}")
     return 0
 
 
@@ -279,6 +283,10 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("log")
     q.add_argument("--csv", required=True, help="output directory")
     q.set_defaults(func=_cmd_log_export)
+
+    from dpcontrol import pki_command  # noqa: PLC0415
+
+    pki_command.add_parser(sub)
     return parser
 
 

@@ -48,7 +48,7 @@ import orjson
 from dpcontrol.arguments import add_zenoh_arguments, positive_number
 from dpcontrol.models.vessels import vessel_from_config
 from dpcontrol.setpoint import DEFAULT_TIMEOUT_S, check_request, send_request
-from interfaces.zenoh.config import LOCAL_DAEMON_CONNECT, ZenohConfig, ZenohOpenError
+from interfaces.zenoh.config import LOCAL_DAEMON_CONNECT, ZenohConfig, ZenohOpenError, tool_config
 from interfaces.zenoh.keys import ROLES, validate_vessel_id
 from interfaces.zenoh.node import LatestSlot, ZenohNode
 from interfaces.zenoh.schemas import MODES, parse_message
@@ -439,9 +439,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def session_config_from_args(args: argparse.Namespace) -> ZenohConfig:
-    """The Zenoh session of the console, built from ``--connect``/``--listen`` as ``dpcontrol monitor`` and
-    ``dpcontrol setpoint`` build theirs."""
-    return ZenohConfig(listen=tuple(args.listen or ()), connect=tuple(args.connect or LOCAL_DAEMON_CONNECT))
+    """The Zenoh session of the console (its live feed and every action), built from ``--connect``/``--listen``
+    and the TLS options exactly as ``dpcontrol monitor`` and ``dpcontrol setpoint`` build theirs: on a secured
+    vessel network the console is a ``console`` (or, read-only, a ``monitor``) identity like any other tool."""
+    return tool_config(args, LOCAL_DAEMON_CONNECT)
 
 
 def run_from_args(args: argparse.Namespace) -> int:

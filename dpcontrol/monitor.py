@@ -36,10 +36,11 @@ from rich.text import Text
 
 from dpbase.frames import ssa
 from dpcontrol.arguments import add_zenoh_arguments
-from interfaces.zenoh.config import LOCAL_DAEMON_CONNECT, ZenohConfig, ZenohOpenError
+from interfaces.zenoh.config import LOCAL_DAEMON_CONNECT, ZenohConfig, ZenohOpenError, tool_config
 from interfaces.zenoh.keys import ROLES, validate_vessel_id
 from interfaces.zenoh.node import AliveState, LatestSlot, ZenohNode
 from interfaces.zenoh.schemas import parse_message
+from interfaces.zenoh.security import ZenohSecurity
 
 #: Topics the monitor shows (the operator's own setpoint requests are not displayed).
 MONITOR_TOPICS: tuple[str, ...] = ("estimate", "mmae", "control", "status", "command", "feedback")
@@ -658,7 +659,7 @@ class _Feed:
 def run_monitor(vessel: str, connect: Sequence[str] = DEFAULT_CONNECT, *, listen: Sequence[str] = (),
                 once: bool = False, wait_s: float = 3.0, duration_s: float | None = None,
                 refresh_hz: float = 10.0, stale_after_s: float = 2.0, console: Console | None = None,
-                clock: Callable[[], float] = time.monotonic) -> int:
+                clock: Callable[[], float] = time.monotonic, security: ZenohSecurity | None = None) -> int:
     """Run the live monitor (or print one snapshot) for ``vessel``.
 
     Parameters
@@ -684,6 +685,8 @@ def run_monitor(vessel: str, connect: Sequence[str] = DEFAULT_CONNECT, *, listen
         Output (default: stdout).
     clock : callable
         Monotonic clock [s].
+    security : ZenohSecurity, optional
+        This tool's TLS identity (a monitor's or a console's) on a secured vessel network.
 
     Returns
     -------
@@ -698,7 +701,7 @@ def run_monitor(vessel: str, connect: Sequence[str] = DEFAULT_CONNECT, *, listen
         validate_vessel_id(vessel)
         if not refresh_hz > 0.0 or not wait_s >= 0.0 or (duration_s is not None and not duration_s >= 0.0):
             raise ValueError("refresh_hz must be > 0, wait_s and duration_s >= 0")
-        config = ZenohConfig(listen=tuple(listen), connect=tuple(connect))
+        config = ZenohConfig(listen=tuple(listen), connect=tuple(connect), security=security)
     except ValueError as exc:
         errors.print(f"dpcontrol monitor: {exc}", markup=False, highlight=False)
         return 2
@@ -744,8 +747,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run_from_args(args: argparse.Namespace) -> int:
     """Run :func:`run_monitor` from parsed :func:`add_arguments` options."""
-    return run_monitor(args.vessel, tuple(args.connect or DEFAULT_CONNECT), listen=tuple(args.listen or ()),
-                       once=args.once, wait_s=args.wait, duration_s=args.duration, refresh_hz=args.refresh_hz)
+    try:
+        config = tool_config(args, DEFAULT_CONNECT)
+    except ValueError as exc:
+        print(f"dpcontrol monitor: {exc}", file=sys.stderr)
+        return 2
+    return run_monitor(args.vessel, config.connect, listen=config.listen, once=args.once, wait_s=args.wait,
+                       duration_s=args.duration, refresh_hz=args.refresh_hz, security=config.security)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

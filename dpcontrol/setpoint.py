@@ -28,10 +28,11 @@ from typing import Any, TextIO
 
 from dpcontrol.arguments import add_zenoh_arguments, finite_number, positive_number
 from interfaces.messages import Rejected
-from interfaces.zenoh.config import LOCAL_DAEMON_CONNECT, ZenohConfig, ZenohOpenError
+from interfaces.zenoh.config import LOCAL_DAEMON_CONNECT, ZenohConfig, ZenohOpenError, tool_config
 from interfaces.zenoh.keys import validate_vessel_id
 from interfaces.zenoh.node import LatestSlot, ZenohNode
 from interfaces.zenoh.schemas import MODES, parse_message, parse_setpoint, setpoint_payload
+from interfaces.zenoh.security import ZenohSecurity
 
 #: Longest wait for the controller's answer by default [s]: a controller answers in the next cycle
 #: (100 ms at 10 Hz); the rest is for zenoh to connect and discover on a loaded computer.
@@ -65,12 +66,17 @@ class Answer:
         The request's sequence number.
     controller_t_s : float or None
         The controller's time of the step that took the request [s] (its monotonic clock).
+    role, identity : str or None
+        The role and identity (certificate common name) the controller took the request under (``None`` on an
+        unauthenticated network).
     """
 
     outcome: str
     detail: str
     seq: int
     controller_t_s: float | None = None
+    role: str | None = None
+    identity: str | None = None
 
     @property
     def exit_code(self) -> int:
@@ -90,7 +96,8 @@ def _answer_to(seq: int, status: Mapping[str, Any] | None) -> Answer | None:
     candidates = [*(status.get("requests") or ()), status.get("request")]
     for request in candidates:
         if isinstance(request, Mapping) and request.get("seq") == seq:
-            return Answer(str(request.get("outcome")), str(request.get("detail", "")), seq, request.get("t_s"))
+            return Answer(str(request.get("outcome")), str(request.get("detail", "")), seq, request.get("t_s"),
+                          request.get("role"), request.get("identity"))
     return None
 
 
@@ -177,25 +184,28 @@ def send_request(node: ZenohNode, fields: Mapping[str, Any], *, timeout_s: float
 def _print(answer: Answer, vessel: str, as_json: bool, out: TextIO, err: TextIO) -> None:
     if as_json:
         out.write(json.dumps({"vessel": vessel, "seq": answer.seq, "outcome": answer.outcome,
-                              "detail": answer.detail, "controller_t_s": answer.controller_t_s}) + "\n")
+                              "detail": answer.detail, "controller_t_s": answer.controller_t_s,
+                              "role": answer.role, "identity": answer.identity}) + "\n")
         return
+    by = f" (taken from {answer.role} '{answer.identity}')" if answer.identity else ""
     if answer.outcome == "applied":
-        out.write(f"{vessel}: applied: {answer.detail}\n")
+        out.write(f"{vessel}: applied: {answer.detail}{by}\n")
     elif answer.outcome == "refused":
-        err.write(f"dpcontrol setpoint: {vessel}: refused: {answer.detail}\n")
+        err.write(f"dpcontrol setpoint: {vessel}: refused: {answer.detail}{by}\n")
     else:
         err.write(f"dpcontrol setpoint: {answer.detail}\n")
 
 
 def run_setpoint(vessel: str, fields: Mapping[str, Any], *, connect: Sequence[str] = LOCAL_DAEMON_CONNECT,
                  listen: Sequence[str] = (), timeout_s: float = DEFAULT_TIMEOUT_S, as_json: bool = False,
-                 out: TextIO | None = None, err: TextIO | None = None) -> int:
-    """Validate, send and report one request (the ``dpcontrol setpoint`` command); returns the exit code."""
+                 out: TextIO | None = None, err: TextIO | None = None, security: ZenohSecurity | None = None) -> int:
+    """Validate, send and report one request (the ``dpcontrol setpoint`` command); returns the exit code.
+    ``security``: this tool's TLS identity (a console's) on a secured vessel network."""
     out = out or sys.stdout
     err = err or sys.stderr
     try:
         validate_vessel_id(vessel)
-        config = ZenohConfig(listen=tuple(listen), connect=tuple(connect))
+        config = ZenohConfig(listen=tuple(listen), connect=tuple(connect), security=security)
     except ValueError as error:
         err.write(f"dpcontrol setpoint: {error}\n")
         return EXIT_USAGE
@@ -214,8 +224,10 @@ def run_setpoint(vessel: str, fields: Mapping[str, Any], *, connect: Sequence[st
         node.close()
     if answer.outcome in ("no_controller", "no_answer"):
         where = ", ".join([*(f"connecting to {e}" for e in connect), *(f"listening on {e}" for e in listen)])
+        secured = "" if security is None else (f"; on a secured network, does '{security.expected_name}' hold the "
+                                                 "console role in its zenoh.identities?")
         answer = Answer(answer.outcome, f"{answer.detail} ({where or 'no endpoints'}): is `dpcontrol run` up, "
-                        "with this vessel_id, and is the endpoint its zenoh.listen?", answer.seq)
+                        f"with this vessel_id, and is the endpoint its zenoh.listen{secured}?", answer.seq)
     _print(answer, vessel, as_json, out, err)
     return answer.exit_code
 
@@ -245,5 +257,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run_from_args(args: argparse.Namespace) -> int:
     """Run :func:`run_setpoint` from parsed :func:`add_arguments` options."""
-    return run_setpoint(args.vessel, request_fields(args), connect=tuple(args.connect or LOCAL_DAEMON_CONNECT),
-                        listen=tuple(args.listen or ()), timeout_s=args.timeout, as_json=args.json)
+    try:
+        config = tool_config(args)
+    except ValueError as error:
+        print(f"dpcontrol setpoint: {error}", file=sys.stderr)
+        return EXIT_USAGE
+    return run_setpoint(args.vessel, request_fields(args), connect=config.connect, listen=config.listen,
+                        timeout_s=args.timeout, as_json=args.json, security=config.security)

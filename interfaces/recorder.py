@@ -222,7 +222,8 @@ _CORE_TOPICS = (
               {"thrust_n": _vec("thrust per thruster [N]"), "azimuth_rad": _vec("azimuth per thruster [rad]"),
                "tau_achieved_b": _vec("force the solution produces [n, n, nm]")}),
     TopicSpec("command", "dpcontrol.command", "Thruster command as published on dp/<vessel>/thrusters/command.", {}),
-    TopicSpec("mode", "dpcontrol.mode", "Mode change: new mode, previous mode, reason.",
+    TopicSpec("mode", "dpcontrol.mode", "Mode change: new mode, previous mode, reason; or an operator request "
+              "refused (rejected_request, with the role and identity it came in under when one was refused by role).",
               {"mode": _str("new mode"), "previous": _str("previous mode"), "reason": _str("why")}),
     TopicSpec("alarm", "dpcontrol.alarm", "Alarm transition: raised or cleared.",
               {"code": _str("alarm code"), "severity": _str("info/warning/alarm/critical"),

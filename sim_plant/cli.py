@@ -28,6 +28,7 @@ from typing import Any
 
 from dpbase.yamlfile import load_yaml
 from dpcontrol.arguments import positive_number
+from interfaces.zenoh.security import add_tls_arguments
 
 # Small matrices only: a threaded BLAS costs ~100x per LAPACK call on a loaded 2-core machine.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
@@ -213,6 +214,7 @@ def _add_hil(commands: Any) -> None:
                      help="also listen here (repeatable), besides what the controller configuration implies")
     sub.add_argument("--zenoh-connect", action="append", metavar="ENDPOINT",
                      help="also connect here (repeatable), besides the controller's zenoh.listen endpoints")
+    add_tls_arguments(sub)  # the emulator's own certificate on a secured vessel network
     sub.add_argument("--no-can-server", action="store_true",
                      help="do not start the python-can-remote server of 'remote' buses (someone else runs it)")
     sub.set_defaults(handler=_cmd_hil)
@@ -251,6 +253,7 @@ def _scenario_path(text: str) -> Path:
 def _cmd_hil(args: argparse.Namespace) -> int:
     # imported here so that `sim-plant --help` and the stubs do not load zenoh, python-can, pymavlink
     from dpbase.schema import ConfigError  # noqa: PLC0415
+    from interfaces.zenoh.security import security_from_args  # noqa: PLC0415
     from sim_plant.emulator import HilEmulator, HilError, HilOptions  # noqa: PLC0415
     from sim_plant.hil_config import load_controller_wiring  # noqa: PLC0415
     from sim_plant.scenario import load_scenario  # noqa: PLC0415
@@ -258,10 +261,14 @@ def _cmd_hil(args: argparse.Namespace) -> int:
     try:
         scenario = load_scenario(_scenario_path(args.scenario))
         wiring = load_controller_wiring(args.controller_config)
+        security = security_from_args(args, wiring.zenoh.identities)
+        if security is None and wiring.zenoh.identities:
+            raise ValueError("the controller's zenoh network is secured (zenoh.identities): give the emulator's "
+                             "certificate with --tls-dir DIR --identity NAME (an identity with roles drives, console)")
         options = HilOptions(speed=args.speed, duration_s=args.duration, engage=args.engage, out_dir=args.out,
                              zenoh_listen=None if args.zenoh_listen is None else tuple(args.zenoh_listen),
                              zenoh_connect=None if args.zenoh_connect is None else tuple(args.zenoh_connect),
-                             can_server=not args.no_can_server)
+                             can_server=not args.no_can_server, zenoh_security=security)
         emulator = HilEmulator(scenario, wiring, options)
     except (ConfigError, ValueError, KeyError, OSError) as error:
         message = error.args[0] if isinstance(error, KeyError) and error.args else error
@@ -318,6 +325,8 @@ def _add_demo(commands: Any) -> None:
     sub.add_argument("--duration", type=positive_number, default=None, help="seconds (default: the scenario's)")
     sub.add_argument("--live", action=argparse.BooleanOptionalAction, default=None,
                      help="live terminal view (default: when stdout is a terminal)")
+    sub.add_argument("--plaintext", action="store_true",
+                     help="zenoh over plain TCP (default: mutual TLS and access control by role, as on a vessel)")
     sub.set_defaults(handler=_cmd_demo)
 
 
@@ -341,7 +350,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         print(f"sim-plant demo: {unwritable}", file=sys.stderr)
         return EXIT_USAGE
     try:
-        report = run_demo(scenario_path, args.out, duration_s=args.duration, live=args.live)
+        report = run_demo(scenario_path, args.out, duration_s=args.duration, live=args.live, secure=not args.plaintext)
     except DemoError as error:
         print(f"sim-plant demo: {error}", file=sys.stderr)
         return EXIT_FAILURE

@@ -81,6 +81,7 @@ import numpy as np
 from interfaces.messages import FixQuality, Heading, PositionFix, SensorMessage
 from interfaces.systemd import SystemdNotifier
 from interfaces.zenoh.config import ZenohConfig
+from interfaces.zenoh.security import ZenohSecurity
 from sim_plant.hil_config import (
     CanTransport,
     ControllerWiring,
@@ -137,6 +138,9 @@ class HilOptions:
         (:func:`sim_plant.hil_config.zenoh_endpoints`).
     zenoh_lease_s : float
         Link lease [s]: how fast a vanished peer (and its liveliness token) is noticed.
+    zenoh_security : ZenohSecurity or None
+        On a secured vessel network: the emulator's TLS identity and the identity → roles map its session
+        enforces (the controller configuration's ``zenoh.identities``).
     can_server : bool
         Start the python-can-remote server of ``remote`` buses (False: someone else runs it).
     can_server_mode : {"process", "thread"}
@@ -160,6 +164,7 @@ class HilOptions:
     zenoh_listen: tuple[str, ...] | None = None
     zenoh_connect: tuple[str, ...] | None = None
     zenoh_lease_s: float = 3.0
+    zenoh_security: ZenohSecurity | None = None
     can_server: bool = True
     can_server_mode: str = "process"
     serial_backlog_bytes: int = 2048
@@ -419,7 +424,8 @@ class HilEmulator:
         return [Heading(init.heading_rad % (2.0 * math.pi))]
 
     def _open_zenoh(self) -> None:
-        config = ZenohConfig(listen=self.zenoh_listen, connect=self.zenoh_connect, lease_s=self.options.zenoh_lease_s)
+        config = ZenohConfig(listen=self.zenoh_listen, connect=self.zenoh_connect, lease_s=self.options.zenoh_lease_s,
+                             security=self.options.zenoh_security)
         names = [t.name for t in self.scenario.vessel.thrusters]
         self.zenoh = PlantZenoh(config, self.wiring.vessel_id, names, clock=self.clock)
         positional = any(p.north_m is not None for p in self.scenario.setpoints) or not self.scenario.setpoints

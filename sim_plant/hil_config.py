@@ -126,11 +126,13 @@ class SensorWiring:
 
 @dataclass(frozen=True)
 class ZenohWiring:
-    """The daemon's zenoh endpoints (``zenoh.listen`` / ``zenoh.connect``)."""
+    """The daemon's zenoh endpoints (``zenoh.listen`` / ``zenoh.connect``) and, on a secured network, its
+    identity → roles map (``zenoh.identities``), which the emulator's own session enforces too."""
 
     mode: str = "peer"
     listen: tuple[str, ...] = ()
     connect: tuple[str, ...] = ()
+    identities: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -299,7 +301,14 @@ def _zenoh(sec: Section) -> ZenohWiring:
             except ValueError:
                 raise ConfigError(where, "a zenoh endpoint like tcp/127.0.0.1:7447", value) from None
         endpoints[key] = tuple(found)
-    return ZenohWiring(mode, endpoints["listen"], endpoints["connect"])
+    identities: dict[str, tuple[str, ...]] = {}
+    raw = sec.raw("identities", None)
+    for name, held in (raw.items() if isinstance(raw, Mapping) else ()):
+        roles = (held,) if isinstance(held, str) else tuple(held) if isinstance(held, list) else None
+        if roles is None or not all(isinstance(r, str) for r in roles):
+            raise ConfigError(join(join(sec.path, "identities"), str(name)), "a role or a list of roles", held)
+        identities[str(name)] = roles
+    return ZenohWiring(mode, endpoints["listen"], endpoints["connect"], identities)
 
 
 # -- matching -------------------------------------------------------------------------------------

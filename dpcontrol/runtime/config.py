@@ -27,6 +27,7 @@ from dpcontrol.runtime.hub import HubConfig, SensorConfig, SensorKind
 from interfaces.nmea0183.codec import DEFAULT_MAX_SENTENCE_CHARS
 from interfaces.recorder import RecorderSettings
 from interfaces.zenoh.config import ZenohConfig
+from interfaces.zenoh.security import unprotected_endpoints
 
 PROTOCOLS = ("nmea0183", "nmea2000", "mavlink")
 MODES = ("standby", "auto_heading", "auto_position")
@@ -511,6 +512,7 @@ def _parse(mapping: object, text: str, file: str | None) -> DaemonConfig:
     deviation = _parse_deviation(root.section("deviation"))
 
     zenoh = ZenohConfig.from_mapping(root.raw("zenoh", None), "zenoh")
+    _refuse_unprotected(zenoh)
 
     rs = root.section("recorder")
     recorder = RecorderSettings(
@@ -535,6 +537,23 @@ def _parse(mapping: object, text: str, file: str | None) -> DaemonConfig:
                         estimator, guidance, control, allocation, hub, fallback, monitor, zenoh, recorder, state,
                         source_text=text, source_file=file, realtime=realtime, replica=replica,
                         consequence=consequence, deviation=deviation)
+
+
+def _refuse_unprotected(zenoh: ZenohConfig) -> None:
+    """Whoever reaches the daemon's zenoh endpoint can command the vessel unless zenoh authenticates and filters
+    them: off loopback, only TLS with mutual authentication and access control by role (``zenoh.tls`` +
+    ``zenoh.identities``), or an explicit ``zenoh.insecure: true`` (a standing warning alarm then says so).
+
+    Raises
+    ------
+    ConfigError
+    """
+    open_to_all = unprotected_endpoints(zenoh.listen, zenoh.connect, zenoh.security)
+    if open_to_all and not (zenoh.security is not None and zenoh.security.insecure):
+        raise ConfigError("zenoh", "tls/ endpoints with zenoh.tls and zenoh.identities (mutual TLS and access "
+                          "control by role; see docs/security.md) off loopback, or 'insecure: true' to accept "
+                          f"that anybody on the network can command the vessel; unprotected: {', '.join(open_to_all)}",
+                          show_got=False)
 
 
 def _parse_deviation(section: Section) -> DeviationSettings:

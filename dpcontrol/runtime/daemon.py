@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import collections
 import copy
+import dataclasses
 import gc
 import itertools
 import logging
@@ -52,8 +53,10 @@ from interfaces.messages import LinkStatus, Measurement, RejectedInput
 from interfaces.recorder import Recorder, TopicSpec, default_topics
 from interfaces.systemd import SystemdNotifier
 from interfaces.zenoh import schemas
-from interfaces.zenoh.node import LatestSlot, ZenohNode
+from interfaces.zenoh.node import LatestSlot, Received, ZenohNode
+from interfaces.zenoh.pki import days_left
 from interfaces.zenoh.schemas import SetpointRequest
+from interfaces.zenoh.security import EXPIRY_WARNING_DAYS, unprotected_endpoints
 
 log = logging.getLogger(__name__)
 
@@ -68,7 +71,8 @@ CONTROLLER_CHECK_S = 0.5
 RUNTIME_TOPICS = (
     TopicSpec("cycle", "dpcontrol.cycle",
               "What one control step consumed: the raw-input sequence numbers of its measurements, link "
-              "changes, thruster feedback and operator requests (dpcontrol replay feeds exactly these).",
+              "changes, thruster feedback and operator requests, each with the role and identity (certificate common "
+              "name) it came in under (dpcontrol replay feeds exactly these).",
               {"cycle": {"type": "integer"}, "inputs": {"type": "array"}, "links": {"type": "array"},
                "feedback": {"type": "array"}, "requests": {"type": "array"}}),
     TopicSpec("consequence", "dpcontrol.consequence",
@@ -532,6 +536,19 @@ class Daemon:
         node = self.node
         # sea-state classes for this hull (seed 001 Table I, Froude-scaled from its 100 m supply vessel)
         self._sea_states = schemas.SeaStateTable.froude_scaled(cfg.vessel.length_m)
+        security = cfg.zenoh.security
+        open_to_all = unprotected_endpoints(cfg.zenoh.listen, cfg.zenoh.connect, security)
+        if open_to_all:  # (the configuration refused this unless insecure: true)
+            text = (f"zenoh insecure: {', '.join(open_to_all)} without mutual TLS and access control: anybody on "
+                    "that network can command the vessel")
+            log.warning("%s", text)
+            self.alarms.raise_(self.clock(), "zenoh.insecure", Severity.WARNING, text)  # standing: never cleared
+        if security is not None and security.files is not None:
+            days = days_left(security.files)
+            if days < EXPIRY_WARNING_DAYS:  # (links open stay when it ends; new ones, a restart's, are refused)
+                self.alarms.raise_(self.clock(), "zenoh.certificate_expiring", Severity.WARNING,
+                                   f"zenoh certificate or CA expires in {days:.0f} days: issue new ones "
+                                   "(dpcontrol pki issue) before then")
         # One controller per vessel: two would command the same thrusters, each fighting the other's
         # forces. Refuse to start while another holds the controller token (a second `dpcontrol run` by
         # hand beside the service, a standby computer started in error); a controller that joins later
@@ -732,7 +749,7 @@ class Daemon:
         self._check_overflow(t_s)
         self._check_conflict(t_s)
         self.pump.health.apply_links(t_s, links, self.controller.hub, self.alarms)
-        requests = [received.message for received in self._setpoints.sink.drain()]
+        requests = self._attributed(t_s, self._setpoints.sink.drain())
         rejected = self._setpoints.stats
         if self._setpoint_rejected.grew(self.alarms, t_s, rejected.rejected):
             why = rejected.last_rejection
@@ -870,6 +887,41 @@ class Daemon:
                                f"black-box recorder: {error.message if error is not None else recorder.health.state}")
         else:
             self.alarms.clear(t_s, "recorder.error")
+
+    def _attributed(self, t_s: float, received: list[Received[SetpointRequest]]) -> list[SetpointRequest]:
+        """The operator requests with the role and identity they came in under; those from a role other than
+        ``console`` dropped (recorded, alarmed).
+
+        Zenoh's access control already lets only ``console`` identities put set-points; this checks again. The
+        identity is the certificate common name of the link the request's sender (its source info) is connected
+        over; a request without source info is named by the one console connected, else by the list of them.
+        """
+        if not received:
+            return []
+        assert self.node is not None
+        security = self.config.zenoh.security
+        if security is None or not security.identities:  # no authentication: nobody is known
+            return [item.message for item in received]
+        links = self.node.link_identities()
+        taken: list[SetpointRequest] = []
+        for item in received:
+            identity = links.get(item.source_zid) if item.source_zid is not None else None
+            roles = security.roles_of(identity)
+            if identity is None:
+                consoles = sorted({n for n in links.values() if "console" in security.roles_of(n)})
+                identity = consoles[0] if len(consoles) == 1 else f"one of {', '.join(consoles) or 'none'}"
+                roles = ("console",)  # (the access control let only console identities put it)
+            role = "console" if "console" in roles else "/".join(roles) or "none"
+            if role != "console":
+                text = (f"operator request seq {item.message.seq} from {identity!r} (role {role}) refused: only "
+                        "console identities may command")
+                self.alarms.raise_(t_s, "operator.unauthorised", Severity.WARNING, text)
+                if self.recorder is not None:
+                    self.recorder.record("mode", t_s, {"t_s": t_s, "rejected_request": text, "role": role,
+                                                       "identity": identity})
+                continue
+            taken.append(dataclasses.replace(item.message, role=role, identity=identity))
+        return taken
 
     def _check_overflow(self, t_s: float) -> None:
         """``inputs.overflow`` while reader threads drop inputs (a full queue), cleared 10 s after the last."""

@@ -294,9 +294,10 @@ class DpController:
             where = (f"set-point {north:.2f} m N, {east:.2f} m E, heading {math.degrees(heading) % 360.0:.1f}°"
                      if self._setpoint_given or self.mode is not Mode.STANDBY else "no set-point yet")
             in_force = f"mode {self.mode.value}, {where}"
-            for seq, refusals, notes in self._taken:
+            for request, (seq, refusals, notes) in zip(requests, self._taken, strict=False):
                 detail = "; ".join([*refusals, in_force, *notes])
-                self.recent_requests.append(RequestOutcome(seq, t_s, "refused" if refusals else "applied", detail))
+                self.recent_requests.append(RequestOutcome(seq, t_s, "refused" if refusals else "applied", detail,
+                                                           request.role, request.identity))
             self._taken.clear()
 
     @property

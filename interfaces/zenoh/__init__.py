@@ -7,7 +7,9 @@ config queryable and liveliness (DESIGN.md §4.4).
 * :mod:`interfaces.zenoh.schemas` — every JSON payload schema: builders and validating parsers
   (the pure codec, testable without a transport);
 * :mod:`interfaces.zenoh.node` — :class:`ZenohNode` (the transport);
-* :mod:`interfaces.zenoh.loopback` — two peers on 127.0.0.1 for tests and benchmarks.
+* :mod:`interfaces.zenoh.loopback` — two peers on 127.0.0.1 for tests and benchmarks;
+* :mod:`interfaces.zenoh.security` — roles, mutual TLS and zenoh's access control (docs/security.md);
+* :mod:`interfaces.zenoh.pki` — the vessel CA and role certificates (``cryptography``).
 """
 
 from interfaces.zenoh.config import ZenohConfig, ZenohOpenError, open_session

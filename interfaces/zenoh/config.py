@@ -17,7 +17,9 @@ to defaults that matter:
 * the link lease (how long a silent peer is considered alive) is explicit: the liveliness tokens
   of a peer whose link dies without closing are dropped after ``lease_s``;
 * shared memory is off: our JSON payloads are a few kB, below zenoh's SHM threshold, and a
-  hardened service should not create ``/dev/shm`` segments for nothing.
+  hardened service should not create ``/dev/shm`` segments for nothing;
+* ``tls`` / ``identities`` / ``insecure``: mutual TLS and Zenoh's access control by role
+  (:mod:`interfaces.zenoh.security`).
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ from typing import Any
 import zenoh
 
 from dpbase.schema import ConfigError, Section, join
+from interfaces.zenoh.security import ZenohSecurity, security_from_args
 
 log = logging.getLogger(__name__)
 
@@ -105,6 +108,8 @@ class ZenohConfig:
         Largest back-off between connection attempts to ``connect`` endpoints [s].
     shared_memory : bool
         Zenoh shared-memory transport between processes on one host (off: payloads are small).
+    security : ZenohSecurity or None
+        TLS files, identity → role map (access control) and the ``insecure`` waiver; ``None``: plaintext.
     """
 
     mode: str = "peer"
@@ -114,6 +119,7 @@ class ZenohConfig:
     lease_s: float = 3.0
     connect_retry_max_s: float = 1.0
     shared_memory: bool = False
+    security: ZenohSecurity | None = None
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -139,7 +145,8 @@ class ZenohConfig:
         """Build from a parsed config mapping (YAML ``zenoh:`` section); errors name the key path.
 
         Keys: ``mode``, ``listen`` (list), ``connect`` (list), ``gossip``, ``lease_s``,
-        ``connect_retry_max_s``, ``shared_memory``; all optional. Unknown keys are rejected.
+        ``connect_retry_max_s``, ``shared_memory``, ``tls``, ``identities``, ``insecure`` (see
+        :meth:`ZenohSecurity.from_mapping`); all optional. Unknown keys are rejected.
 
         Raises
         ------
@@ -163,17 +170,22 @@ class ZenohConfig:
         retry_s = section.number("connect_retry_max_s", defaults.connect_retry_max_s, minimum=0.0,
                                  exclusive_minimum=True)
         shared_memory = section.boolean("shared_memory", defaults.shared_memory)
+        tls, identities = section.raw("tls", None), section.raw("identities", None)
+        insecure = section.boolean("insecure", False)
+        security = None if tls is None and identities is None and not insecure else \
+            ZenohSecurity.from_mapping(tls, identities, insecure, path)
         section.finish()
         if mode == "client" and not endpoints["connect"]:
             raise ConfigError(join(path, "connect"), "at least one router endpoint in client mode", [])
         return cls(mode=mode, listen=endpoints["listen"], connect=endpoints["connect"], gossip=gossip,
-                   lease_s=lease_s, connect_retry_max_s=retry_s, shared_memory=shared_memory)
+                   lease_s=lease_s, connect_retry_max_s=retry_s, shared_memory=shared_memory, security=security)
 
-    def settings(self) -> dict[str, Any]:
+    def settings(self, vessel: str | None = None) -> dict[str, Any]:
         """The zenoh configuration entries this config sets, as ``{json5 key path: value}``.
 
         Every entry that matters is written explicitly, so a zenoh upgrade that changes a default
-        does not change how the vessel network behaves.
+        does not change how the vessel network behaves. ``vessel`` scopes the access-control rules
+        (needed when :attr:`security` maps identities).
         """
         lease_ms = max(100, round(self.lease_s * 1000.0))
         retry_max_ms = max(1, round(self.connect_retry_max_s * 1000.0))
@@ -203,17 +215,19 @@ class ZenohConfig:
         if self.mode == "peer":
             settings["connect/exit_on_failure"] = False
             settings["connect/retry"] = retry
+        if self.security is not None:
+            settings.update(self.security.settings(vessel))
         return settings
 
-    def to_zenoh(self) -> zenoh.Config:
+    def to_zenoh(self, vessel: str | None = None) -> zenoh.Config:
         """A :class:`zenoh.Config` with :meth:`settings` applied on top of an empty config."""
         config = zenoh.Config()
-        for key, value in self.settings().items():
+        for key, value in self.settings(vessel).items():
             config.insert_json5(key, json.dumps(value))
         return config
 
 
-def open_session(config: ZenohConfig) -> zenoh.Session:
+def open_session(config: ZenohConfig, vessel: str | None = None) -> zenoh.Session:
     """Open a zenoh session from an explicit :class:`ZenohConfig`.
 
     Returns without waiting for peers (connections are made in the background).
@@ -228,8 +242,25 @@ def open_session(config: ZenohConfig) -> zenoh.Session:
         if listens_everywhere(endpoint):
             log.warning("zenoh listens on every interface (%s): prefer the vessel network's address", endpoint)
     try:
-        return zenoh.open(config.to_zenoh())
-    except zenoh.ZError as exc:
+        return zenoh.open(config.to_zenoh(vessel))
+    except (zenoh.ZError, ValueError) as exc:
         reason = str(exc).split(" at /", 1)[0]  # drop zenoh's Rust source location
         raise ZenohOpenError(f"cannot open zenoh session (mode={config.mode}, listen={list(config.listen)}, "
                              f"connect={list(config.connect)}): {reason}") from exc
+
+
+def tool_config(args: Any, default_connect: tuple[str, ...] = LOCAL_DAEMON_CONNECT,
+                identities: dict[str, tuple[str, ...]] | None = None) -> ZenohConfig:
+    """The session of a tool that connects to a vessel (``dpcontrol monitor``/``setpoint``/``console``), from
+    its ``--connect``/``--listen`` and TLS options (:func:`interfaces.zenoh.security.add_tls_arguments`):
+    the one way every tool gets its secured zenoh configuration.
+
+    Raises
+    ------
+    ValueError
+        A bad endpoint, ``--tls-dir`` without ``--identity``, or TLS files that will not do (the message says
+        which and why).
+    """
+    return ZenohConfig(listen=tuple(getattr(args, "listen", None) or ()),
+                       connect=tuple(getattr(args, "connect", None) or default_connect),
+                       security=security_from_args(args, identities))

@@ -51,11 +51,14 @@ JSON = zenoh.Encoding.APPLICATION_JSON
 
 @dataclass(frozen=True, slots=True)
 class Received(Generic[T]):
-    """A validated message with its receive time on the consumer's clock [s] and its key."""
+    """A validated message with its receive time on the consumer's clock [s], its key, and the zenoh ID of the
+    session that says it sent it (``source_zid``, when the sender attached its source info; see
+    :meth:`ZenohNode.identity_of`)."""
 
     rx_t_s: float
     key: str
     message: T
+    source_zid: str | None = None
 
 
 class _Sink(Generic[T]):
@@ -204,7 +207,9 @@ class TopicSubscriber(Generic[T]):
                 else:
                     self._accepted += 1
             if not isinstance(result, Rejected):
-                self.sink.put(Received(rx_t_s, str(sample.key_expr), result))
+                source = sample.source_info
+                self.sink.put(Received(rx_t_s, str(sample.key_expr), result,
+                                       None if source is None else str(source.source_id.zid)))
         except Exception:  # a callback must never raise into zenoh
             with self._lock:
                 self._errors += 1
@@ -237,10 +242,13 @@ class TopicPublisher:
     """
 
     def __init__(self, session: zenoh.Session, key: str, *, priority: zenoh.Priority,
-                 congestion_control: zenoh.CongestionControl, express: bool) -> None:
+                 congestion_control: zenoh.CongestionControl, express: bool, attach_source: bool = False) -> None:
         self.key = key
         self._publisher = session.declare_publisher(key, encoding=JSON, priority=priority,
                                                     congestion_control=congestion_control, express=express)
+        # The sender's source info (its session's zenoh ID) lets the receiver name the authenticated link it
+        # came over (ZenohNode.identity_of); operator requests carry it, the per-cycle topics do not.
+        self._source_id = self._publisher.id if attach_source else None
         self._seq = -1
         self.failures = 0
         self._matched = threading.Event()
@@ -255,7 +263,10 @@ class TopicPublisher:
     def put(self, payload: bytes) -> bool:
         """Publish ``payload`` (already-encoded JSON); ``False`` if zenoh refused it."""
         try:
-            self._publisher.put(payload)
+            if self._source_id is None:
+                self._publisher.put(payload)
+            else:
+                self._publisher.put(payload, source_info=zenoh.SourceInfo(self._source_id, max(self._seq, 0)))
         except zenoh.ZError as exc:
             self.failures += 1
             if self.failures == 1:
@@ -481,7 +492,7 @@ class ZenohNode:
         self._declared_roles: set[str] = set()
         self._peer_cond = threading.Condition()
         self._closed = False
-        self.session = open_session(config)
+        self.session = open_session(config, vessel)
         try:
             self._transports = self.session.info.declare_transport_events_listener(self._on_transport, history=True)
         except Exception:
@@ -507,6 +518,19 @@ class ZenohNode:
         with self._peer_cond:
             return frozenset(self._peers)
 
+    def link_identities(self) -> dict[str, str | None]:
+        """``{zenoh ID: authenticated name}`` of the links open now (the TLS certificate's common name a peer
+        presented; ``None`` on a plaintext link)."""
+        try:
+            return {str(link.zid): link.auth_identifier for link in self.session.info.links()}
+        except Exception as exc:  # a closing session: nobody is linked
+            log.debug("zenoh links: %s", exc)
+            return {}
+
+    def identity_of(self, zid: str | None) -> str | None:
+        """The authenticated name (certificate common name) of the peer session ``zid`` links to us, if any."""
+        return None if zid is None else self.link_identities().get(zid)
+
     def wait_for_peers(self, count: int = 1, timeout_s: float = 5.0) -> bool:
         """Block until at least ``count`` peers are connected, or ``timeout_s`` passes."""
         with self._peer_cond:
@@ -528,7 +552,7 @@ class ZenohNode:
         key = self.keys.topic(topic)
         priority, congestion, express = _QOS[topic]
         return self._keep(TopicPublisher(self.session, key, priority=priority, congestion_control=congestion,
-                                         express=express))
+                                         express=express, attach_source=topic == "setpoint"))
 
     def subscribe(self, topic: str, sink: _Sink[Any] | None = None, *,
                   parse: Callable[[bytes], Any] | None = None, remote_only: bool = False) -> TopicSubscriber[Any]:

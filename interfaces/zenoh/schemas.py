@@ -485,7 +485,9 @@ CONTROL = Schema("dpcontrol.control", 1, Record({
 }))
 
 _REQUEST_OUTCOME = Record({"seq": Integer(0, _MAX_SEQ), "t_s": Number(0.0, _MAX_TIME_S),
-                           "outcome": Text(choices=REQUEST_OUTCOMES), "detail": Text(max_len=256)})
+                           "outcome": Text(choices=REQUEST_OUTCOMES), "detail": Text(max_len=256),
+                           "role": Text(max_len=32), "identity": Text(max_len=128)},
+                          optional=("role", "identity"))
 
 STATUS = Schema("dpcontrol.status", 1, Record({
     "mode": Text(pattern=_IDENT, max_len=32),
@@ -703,6 +705,10 @@ class SetpointRequest:
     (``heading_deg`` is converted). Relative parts: ``move_north_m``/``move_east_m`` in NED,
     ``move_surge_m``/``move_sway_m`` along the *current setpoint's* heading, ``turn_rad``
     clockwise. Use :meth:`resolve` to turn the request into an absolute target.
+
+    ``role`` and ``identity`` are never read from the payload: the receiver sets them from the authenticated
+    link the request came over (the sender's certificate common name and the role the configuration gives it;
+    ``None`` on an unauthenticated network).
     """
 
     t_s: float
@@ -717,6 +723,8 @@ class SetpointRequest:
     move_sway_m: float | None = None
     turn_rad: float | None = None
     reset_thruster: str | None = None
+    role: str | None = None
+    identity: str | None = None
 
     @property
     def changes_pose(self) -> bool:
@@ -1163,12 +1171,15 @@ class CycleTiming:
 class RequestOutcome:
     """What became of an operator request the controller took (``dp/<vessel>/setpoint``): the request's
     ``seq``, the controller time [s] of the step that took it, ``applied`` or ``refused``, and what is now in
-    force or why not. A sender finds its own request by its ``seq``."""
+    force or why not; the role and identity it came in under (see :class:`SetpointRequest`). A sender finds its
+    own request by its ``seq``."""
 
     seq: int
     t_s: float
     outcome: str
     detail: str
+    role: str | None = None
+    identity: str | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -1249,8 +1260,9 @@ def status_payload(*, t_s: float, seq: int, mode: str, sensors: Sequence[SensorH
 
 
 def _request_outcome(outcome: RequestOutcome) -> dict[str, Any]:
+    by = {key: value[:128] for key, value in (("role", outcome.role), ("identity", outcome.identity)) if value}
     return {"seq": int(outcome.seq), "t_s": float(outcome.t_s), "outcome": outcome.outcome,
-            "detail": outcome.detail[:256]}
+            "detail": outcome.detail[:256], **by}
 
 
 def setpoint_payload(*, t_s: float, seq: int, mode: str | None = None, north_m: float | None = None,

@@ -50,6 +50,8 @@ from dpbase.yamlfile import load_yaml, read_yaml_file
 from dpcontrol.platform_info import cpu_times, describe_steal, host_steal
 from dpcontrol.runtime.config import CONTROLLER_SECTIONS
 from interfaces.zenoh.loopback import free_tcp_port, free_udp_port
+from interfaces.zenoh.pki import IdentityFiles, init_ca, issue
+from interfaces.zenoh.security import ZenohSecurity
 from sim_plant.bench.report import PlotEvent, mark_events, plot_events
 
 DEMO_SENSORS = [
@@ -66,6 +68,10 @@ DEMO_REALTIME_PRIORITY = 50
 # The emulator runs this much longer than the scenario: the daemon is stopped first (SIGTERM), and the
 # plant must still be there to receive its last command — zero thrust — before it is stopped in turn.
 STOP_MARGIN_S = 30.0
+#: The demo's zenoh identities and their roles (docs/security.md): the daemon; the emulator, which stands for
+#: both the drives and the scenario's operator; the live view (a bridge console); a shore monitor for the reader.
+DEMO_IDENTITIES: dict[str, tuple[str, ...]] = {"dp": ("controller",), "plant": ("drives", "console"),
+                                              "bridge": ("console",), "shore": ("monitor",)}
 
 
 class DemoError(RuntimeError):
@@ -115,12 +121,15 @@ def realtime_priority_allowed(wanted: int = DEMO_REALTIME_PRIORITY) -> int | Non
     return limit if limit >= 1 else None
 
 
-def prepare(scenario_path: Path, run_dir: Path, *, realtime: bool = False) -> tuple[Path, Path, dict[str, Any]]:
+def prepare(scenario_path: Path, run_dir: Path, *, realtime: bool = False,
+            secure: bool = True) -> tuple[Path, Path, dict[str, Any]]:
     """Write the demo scenario and the controller configuration into ``run_dir``.
 
     ``realtime``: give the daemon's control-loop thread SCHED_FIFO (``loop.realtime_priority``) when this
     user may (:func:`realtime_priority_allowed`); it shortens the tail of the cycle latency on a shared
-    machine. Returns the two paths and the wiring (vessel id, zenoh endpoint, duration).
+    machine. ``secure``: zenoh over mutual TLS with access control by role, as on a vessel (a CA and the
+    certificates of :data:`DEMO_IDENTITIES` made in ``run_dir/tls``); else plaintext TCP on 127.0.0.1.
+    Returns the two paths and the wiring (vessel id, zenoh endpoints, TLS directory, duration).
     """
     try:
         _, scenario = read_yaml_file(scenario_path, what="a readable scenario file")
@@ -134,6 +143,16 @@ def prepare(scenario_path: Path, run_dir: Path, *, realtime: bool = False) -> tu
     short = Path(tempfile.mkdtemp(prefix="dp-demo-"))  # pty symlinks and sockets: short paths
     zenoh_port, can_port, mav_port = free_tcp_port(), free_tcp_port(), free_udp_port()
     plant_zenoh_port = free_tcp_port()
+    scheme = "tls" if secure else "tcp"
+    zenoh_section: dict[str, Any] = {"mode": "peer", "listen": [f"{scheme}/127.0.0.1:{zenoh_port}"]}
+    tls_dir = None
+    if secure:
+        tls_dir = (run_dir / "tls").resolve()
+        init_ca(tls_dir, "demo", overwrite=True)
+        for name, roles in DEMO_IDENTITIES.items():
+            issue(tls_dir, "+".join(roles), name, days=30)
+        zenoh_section.update(tls={"dir": str(tls_dir), "identity": "dp"},
+                             identities={name: list(roles) for name, roles in DEMO_IDENTITIES.items()})
     controller = dict(scenario.get("controller") or {})
     transports = [
         {"name": "serial_nav", "protocol": "nmea0183", "port": str(short / "ttyNAV"), "baud": 38400},
@@ -163,7 +182,7 @@ def prepare(scenario_path: Path, run_dir: Path, *, realtime: bool = False) -> tu
         "loop": {"rate_hz": 10},
         "transports": transports,
         "sensors": sensors,
-        "zenoh": {"mode": "peer", "listen": [f"tcp/127.0.0.1:{zenoh_port}"]},
+        "zenoh": zenoh_section,
         "recorder": {"path": str(run_dir / "records"), "flush_s": 0.5},
         "state": {"path": str(run_dir / "state.json"), "max_age_s": 30},
     }
@@ -179,8 +198,9 @@ def prepare(scenario_path: Path, run_dir: Path, *, realtime: bool = False) -> tu
     config_file = run_dir / "vessel.yaml"
     scenario_file.write_text(yaml.safe_dump(scenario, sort_keys=False), encoding="utf-8")
     config_file.write_text(yaml.safe_dump(config, sort_keys=False), encoding="utf-8")
-    wiring = {"vessel_id": "demo", "zenoh": f"tcp/127.0.0.1:{zenoh_port}",
-              "zenoh_plant": f"tcp/127.0.0.1:{plant_zenoh_port}", "short_dir": str(short),
+    wiring = {"vessel_id": "demo", "zenoh": f"{scheme}/127.0.0.1:{zenoh_port}",
+              "zenoh_plant": f"{scheme}/127.0.0.1:{plant_zenoh_port}", "short_dir": str(short),
+              "tls_dir": None if tls_dir is None else str(tls_dir),
               "duration_s": float(scenario.get("duration_s", 120.0))}
     return scenario_file, config_file, wiring
 
@@ -189,9 +209,10 @@ def emulator_command(scenario_file: Path, config_file: Path, wiring: dict[str, A
                      duration_s: float) -> list[str]:
     """``sim-plant hil`` for the demo: engages DP as the operator; listens on its own zenoh endpoint (so a
     monitor sees the plant's liveliness too) and connects to the daemon's."""
+    tls = [] if wiring.get("tls_dir") is None else ["--tls-dir", wiring["tls_dir"], "--identity", "plant"]
     return [sys.executable, "-m", "sim_plant.cli", "--log-level", "WARNING", "hil", str(scenario_file),
             "--controller-config", str(config_file), "--out", str(out_dir), "--engage", "--duration", str(duration_s),
-            "--zenoh-listen", wiring["zenoh_plant"], "--zenoh-connect", wiring["zenoh"]]
+            "--zenoh-listen", wiring["zenoh_plant"], "--zenoh-connect", wiring["zenoh"], *tls]
 
 
 def _parent_death_signal() -> Any:
@@ -256,8 +277,8 @@ class _StopSignals:
 
 
 def run_demo(scenario_path: Path, run_dir: Path | None = None, *, duration_s: float | None = None,
-             live: bool | None = None, quiet: bool = False) -> Path:
-    """Run the demo (see the module docstring); returns the report directory.
+             live: bool | None = None, quiet: bool = False, secure: bool = True) -> Path:
+    """Run the demo (see the module docstring); returns the report directory. ``secure``: see :func:`prepare`.
 
     Raises
     ------
@@ -269,7 +290,7 @@ def run_demo(scenario_path: Path, run_dir: Path | None = None, *, duration_s: fl
     stamp = time.strftime("%Y%m%d-%H%M%S", time.gmtime())
     run_dir = run_dir or Path("runs") / f"demo-{stamp}"
     run_dir.mkdir(parents=True, exist_ok=True)
-    scenario_file, config_file, wiring = prepare(scenario_path, run_dir, realtime=True)
+    scenario_file, config_file, wiring = prepare(scenario_path, run_dir, realtime=True, secure=secure)
     duration = duration_s if duration_s is not None else wiring["duration_s"]
     short = Path(wiring["short_dir"])
     say = (lambda *_: None) if quiet else (lambda text: print(f"sim-plant demo: {text}", flush=True))
@@ -293,8 +314,10 @@ def run_demo(scenario_path: Path, run_dir: Path | None = None, *, duration_s: fl
         if not daemon_notify.wait_ready(READY_TIMEOUT_S, daemon):
             raise DemoError(f"dpcontrol did not become ready (see {run_dir / 'dpcontrol.log'})")
         ticks = cpu_times()  # the hypervisor's share of the CPUs over the daemon's loop (host_steal)
+        tls_dir = wiring["tls_dir"]
+        tls_options = "" if tls_dir is None else f" --tls-dir {tls_dir} --identity shore"
         say(f"dpcontrol ready; running the {duration:g} s scenario (live view: dpcontrol monitor --vessel demo "
-            f"--connect {wiring['zenoh']})")
+            f"--connect {wiring['zenoh']}{tls_options})")
         remaining = duration - (time.monotonic() - plant_start)
         show_live = sys.stdout.isatty() if live is None else live
         try:
@@ -302,7 +325,9 @@ def run_demo(scenario_path: Path, run_dir: Path | None = None, *, duration_s: fl
                 from dpcontrol.monitor import run_monitor  # noqa: PLC0415
 
                 # (it returns on KeyboardInterrupt, which the stop signals raise)
-                run_monitor(wiring["vessel_id"], (wiring["zenoh"], wiring["zenoh_plant"]), duration_s=remaining)
+                view = None if tls_dir is None else ZenohSecurity(IdentityFiles.in_dir(tls_dir, "bridge"))
+                run_monitor(wiring["vessel_id"], (wiring["zenoh"], wiring["zenoh_plant"]), duration_s=remaining,
+                            security=view)
             else:
                 end = plant_start + duration
                 while time.monotonic() < end:

@@ -48,6 +48,9 @@ def test_the_demo_command_runs_and_reports(tmp_path: Path) -> None:
     assert DURATION_S / 2 < change_s < DURATION_S
     assert any(f"includes the move to the set-point of t = {change_s:g} s" in line for line in lines), lines
     assert sorted(p.suffix for p in (out / "report").iterdir()).count(".png") >= 1
+    # secured as on a vessel: zenoh over mutual TLS, access control by role
+    config = yaml.safe_load((out / "vessel.yaml").read_text(encoding="utf-8"))
+    assert config["zenoh"]["listen"][0].startswith("tls/127.0.0.1:") and config["zenoh"]["identities"]["dp"]
 
 
 def _processes_mentioning(text: str) -> list[int]:

@@ -1,8 +1,9 @@
 """Hardware in the loop: ``sim-plant hil`` and ``dpcontrol run`` as two processes for ≥ 60 s.
 
 The emulator and the real daemon talk over a pseudo-terminal (NMEA 0183), a python-can-remote bus
-(NMEA 2000), UDP (MAVLink) and Zenoh, all on 127.0.0.1. The test listens to the daemon's Zenoh keys
-from a third session while the scenario runs, then stops both with SIGTERM and checks:
+(NMEA 2000), UDP (MAVLink) and Zenoh (mutual TLS, access control by role), all on 127.0.0.1. The test
+listens to the daemon's Zenoh keys from a third session (a bridge console) while the scenario runs, then
+stops both with SIGTERM and checks:
 
 * the daemon reached DP (the emulator engages it as the operator) and held CyberShip II within the
   documented bound, and followed the setpoint change;
@@ -25,6 +26,8 @@ import yaml
 
 from interfaces.zenoh.config import ZenohConfig
 from interfaces.zenoh.node import ZenohNode
+from interfaces.zenoh.pki import IdentityFiles
+from interfaces.zenoh.security import ZenohSecurity
 from sim_plant.bench.demo import _NotifyListener, _spawn, _stop, emulator_command, prepare, write_report
 from sim_plant.scenario import builtin_scenario_path
 
@@ -64,7 +67,10 @@ def hil_run(tmp_path_factory: pytest.TempPathFactory) -> dict:
                         daemon_notify)
         assert daemon_notify.wait_ready(60.0, daemon), (run_dir / "dpcontrol.log").read_text()
 
-        node = ZenohNode(ZenohConfig(mode="peer", connect=(wiring["zenoh"], wiring["zenoh_plant"])),
+        # secured as on a vessel (mutual TLS, access control by role): the listener is a bridge console
+        assert wiring["zenoh"].startswith("tls/")
+        bridge = ZenohSecurity(IdentityFiles.in_dir(wiring["tls_dir"], "bridge"))
+        node = ZenohNode(ZenohConfig(mode="peer", connect=(wiring["zenoh"], wiring["zenoh_plant"]), security=bridge),
                          wiring["vessel_id"])
         lock = threading.Lock()
         window: dict[str, list[float]] = collections.defaultdict(list)

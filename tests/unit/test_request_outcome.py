@@ -29,7 +29,8 @@ def test_a_refused_request_is_reported_with_its_seq_and_reason_then_cleared() ->
 
     status = schemas.parse_message("status", status_payload(controller, controller.alarms, 1.0, 2))
     assert not isinstance(status, schemas.Rejected)
-    assert status["request"] == {"seq": 4711, "t_s": 1.0, "outcome": "refused", "detail": outcome.detail}
+    assert status["request"] == {"seq": 4711, "t_s": 1.0, "outcome": "refused", "detail": outcome.detail,
+                                 "role": None, "identity": None}  # (unauthenticated: none known)
     alarm = next(a for a in status["alarms"] if a["code"] == "operator.request_refused")
     assert alarm["active"] and alarm["severity"] == "info" and alarm["text"].startswith("auto_position refused")
 

@@ -111,3 +111,17 @@ def test_verify_would_catch_a_mistake(tmp_path: Path) -> None:
     path = tmp_path / "dpcontrol.service"
     path.write_text(text, encoding="utf-8")
     assert "ProtectHoem" in _verify([path]).stderr
+
+
+@pytest.mark.skipif(SYSTEMD_ANALYZE is None, reason="systemd-analyze is not installed")
+@pytest.mark.parametrize(("unit", "drop_in"), [("dpcontrol.service", "dpcontrol-tls.conf"),
+                                               ("sim-plant.service", "sim-plant-tls.conf")])
+def test_the_tls_drop_ins_verify_and_load_credentials(tmp_path: Path, unit: str, drop_in: str) -> None:
+    # (verify reads drop-ins from the system's unit paths only: the drop-in's lines are appended to the unit)
+    scripts = Path(sysconfig.get_path("scripts"))
+    text = (DEPLOY / "tls" / drop_in).read_text(encoding="utf-8")
+    assert len(_directives(text)["Service"]["LoadCredential"]) == 3  # the CA, the certificate, its key
+    path = tmp_path / unit
+    path.write_text(_render(unit, scripts) + "\n" + text, encoding="utf-8")
+    result = _verify([path])
+    assert result.returncode == 0 and result.stderr.strip() == "", result.stderr
