@@ -218,8 +218,9 @@ def level1(subject: Subject, case: FailureCase, directions_deg: Sequence[float],
     reverse = np.array([max(-t.min_thrust_n, 1e-9) for t in vessel.thrusters])
 
     def held(beta: float, wind: float) -> bool:
-        allocator.load_state_dict(initial)  # every check from the same start: no history across directions
-        return holds(allocator, loads.load_b(beta, wind), available)
+        load = loads.load_b(beta, wind)
+        return any(_holds_from(allocator, start, load, available) for start in _starts(allocator, initial, load,
+                                                                                       available))
 
     winds, limiting, at_limit = [], [], []
     for deg in directions_deg:
@@ -235,8 +236,12 @@ def level1(subject: Subject, case: FailureCase, directions_deg: Sequence[float],
                 lo = mid
             else:
                 hi = mid
-        allocator.load_state_dict(initial)
-        result = static_allocation(allocator, -loads.load_b(beta, lo), available)
+        load = loads.load_b(beta, lo)
+        for start in _starts(allocator, initial, load, available):  # the first start that holds (or the last)
+            if _holds_from(allocator, start, load, available):
+                break
+        allocator.load_state_dict(start)
+        result = static_allocation(allocator, -load, available)
         share = np.abs(result.thrust_n) / np.where(result.thrust_n >= 0.0, rating, reverse)
         share[~available] = -1.0
         winds.append(round(lo, 3))
@@ -244,6 +249,36 @@ def level1(subject: Subject, case: FailureCase, directions_deg: Sequence[float],
         at_limit.append(lo >= max_wind_mps)
     return {"case": case.name, "failed": list(case.failed), "max_wind_mps": winds, "limiting_thruster": limiting,
             "held_at_search_limit": at_limit}
+
+
+def _starts(allocator: ThrustAllocator, initial: Mapping[str, Any], load_b: np.ndarray, available: np.ndarray
+            ) -> list[dict[str, Any]]:
+    """Where a static allocation starts from: the allocator's initial state, and every azimuth turned to the
+    direction the unconstrained (pseudo-inverse) allocation of the demand wants of it.
+
+    The QP linearises each azimuth's thrust circle around its previous angle, so a static allocation (a few QP
+    passes) can settle on a polygon vertex far from the best direction and report saturation where the thrusters
+    could hold (measured: the shuttle tanker at 140°, bow azimuth stuck at 165° from 0° while 172° holds; an
+    intact layout then held less than the same layout with a tunnel lost). Holding from *any* start is a valid
+    answer — the allocation found meets the demand within every limit — so more starts only remove false
+    "saturated" results.
+    """
+    geometry = allocator.geometry
+    if not geometry.azimuth_index.size:
+        return [dict(initial)]
+    f = allocator.unconstrained(-load_b, available)
+    angles = list(initial["azimuth_rad"])
+    for i in geometry.azimuth_index:
+        j = int(geometry.first_variable[i])
+        if f[j] != 0.0 or f[j + 1] != 0.0:
+            angles[int(i)] = math.atan2(f[j + 1], f[j])
+    return [dict(initial), {**initial, "azimuth_rad": angles}]
+
+
+def _holds_from(allocator: ThrustAllocator, start: Mapping[str, Any], load_b: np.ndarray, available: np.ndarray
+                ) -> bool:
+    allocator.load_state_dict(start)  # every check from a stated start: no history across directions and speeds
+    return holds(allocator, load_b, available)
 
 
 def polar_area(winds: Sequence[float]) -> float:

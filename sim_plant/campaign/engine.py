@@ -126,7 +126,8 @@ class Engine:
             self.client = Client(self.scheduler, timeout="20s")
         else:
             self.cluster = LocalCluster(n_workers=self.workers or default_workers(), threads_per_worker=1,
-                                        processes=True, host="127.0.0.1", scheduler_kwargs={"dashboard": False},
+                                        processes=True, host="127.0.0.1", dashboard_address="127.0.0.1:0",
+                                        scheduler_kwargs={"dashboard": False},
                                         silence_logs=logging.ERROR)
             self.client = Client(self.cluster)
         return self

@@ -57,7 +57,8 @@ def flatten_metrics(summary: Mapping[str, Any]) -> dict[str, Any]:
 def varied_cell(entry: VaryEntry, run: Run) -> Any:
     """A varied value in its row: a number as drawn, a listed value by its label."""
     value = run.values[entry.path]
-    if entry.kind in ("uniform", "loguniform", "normal", "integers", "linspace"):
+    if entry.kind in ("uniform", "loguniform", "normal", "integers", "linspace") or (
+            entry.kind == "same_as" and isinstance(value, (int, float))):
         return value
     return run.labels[entry.path]
 
@@ -234,6 +235,8 @@ def write_plots(spec: CampaignSpec, rows: Sequence[Mapping[str, Any]], out_dir: 
         if entry.paired:
             continue
         fig, axes = plt.subplots(1, len(metrics), figsize=(3.6 * len(metrics), 3.8), squeeze=False)
+        if entry.kind == "same_as":
+            continue  # (the same as the entry it copies)
         numeric = entry.kind in ("uniform", "loguniform", "normal", "integers", "linspace")
         categories = list(entry.labels) if not numeric else []
         for ax, metric in zip(axes[0], metrics, strict=True):

@@ -21,6 +21,8 @@ Distributions: ``uniform: [low, high]``, ``loguniform: [low, high]`` (> 0), ``no
 ``integers: [low, high]`` (inclusive), ``choice: [values]`` (optional ``weights``), ``grid: [values]`` and
 ``linspace: [start, stop, count]`` (a grid of numbers, both ends included). ``choice``, ``grid`` and
 ``linspace`` take ``labels`` (names for the values in the table and the plots) and ``paired: true``.
+``same_as: other.path`` (optional ``offset``, added to a number) copies another entry's value — co-linear weather:
+``wind.direction_deg: {same_as: "sea_states[0].direction_deg"}``.
 
 How the runs are formed:
 
@@ -66,7 +68,7 @@ from sim_plant.scenario import Scenario, builtin_scenario_names, builtin_scenari
 
 RANDOM_KINDS = ("uniform", "loguniform", "normal", "integers", "choice")
 LIST_KINDS = ("choice", "grid", "linspace")
-KINDS = ("uniform", "loguniform", "normal", "integers", "choice", "grid", "linspace")
+KINDS = ("uniform", "loguniform", "normal", "integers", "choice", "grid", "linspace", "same_as")
 # The wave-filter keys that mean the same for every DP wave filter (the sensors' noise), kept when the
 # estimator kind changes among them (as ``sim-plant run --estimator``).
 WAVE_FILTER_KINDS = ("mmae", "kf", "rpem", "raw")
@@ -111,9 +113,12 @@ class VaryEntry:
     weights: tuple[float, ...] | None = None
     paired: bool = False
 
+    same_as: str | None = None
+    offset: float = 0.0
+
     @property
     def random(self) -> bool:
-        """Drawn per sample (not a grid, not paired)."""
+        """Drawn per sample (not a grid, not paired, not a copy)."""
         return self.kind in RANDOM_KINDS and not self.paired
 
     @property
@@ -355,6 +360,11 @@ def _entry(path_text: str, value: object, where: str) -> VaryEntry:
         if not count.is_integer() or count < 1:
             raise ConfigError(key, "a whole count ≥ 1 as the third number", count)
         values = tuple(float(v) for v in np.linspace(start, stop, int(count)))
+    elif kind == "same_as":
+        other = sec.string("same_as")
+        offset = sec.number("offset", 0.0)
+        sec.finish()
+        return VaryEntry(path_text, tokens, kind, same_as=other, offset=offset)
     else:
         raw = sec.raw(kind)
         if not isinstance(raw, list) or not raw:
@@ -402,7 +412,14 @@ def _parse(data: object, file: str | None, base_dir: Path) -> CampaignSpec:
     entries = tuple(_entry(path_text, value, join("vary", path_text)) for path_text, value in vary.data.items())
     plot_metrics = tuple(str(m) for m in root.raw("plot_metrics", []) or [])
     root.finish()
-    if not runs_given and any(not e.cell_grid for e in entries):
+    paths = [e.path for e in entries]
+    for entry in entries:
+        if entry.kind == "same_as":
+            target = next((e for e in entries if e.path == entry.same_as), None)
+            if target is None or target.kind == "same_as":
+                raise ConfigError(join(join("vary", entry.path), "same_as"),
+                                  f"another entry of vary ({', '.join(paths)})", entry.same_as)
+    if not runs_given and any(not e.cell_grid and e.kind != "same_as" for e in entries):
         raise ConfigError("runs", "the number of random samples (the campaign varies more than grids)", show_got=False)
     bases = {base_label: base}
     for entry in entries:
@@ -421,7 +438,7 @@ def _parse(data: object, file: str | None, base_dir: Path) -> CampaignSpec:
             set_path(trial, tokens, value, join("set", path_text))
         for entry in entries:
             if entry.tokens != ("base",):
-                sample = entry.values[0] if entry.values else entry.params[0]
+                sample = entry.values[0] if entry.values else entry.params[0] if entry.params else 0.0
                 try:
                     set_path(trial, entry.tokens, sample, join("vary", entry.path))
                 except ConfigError as error:
@@ -476,8 +493,14 @@ def expand(spec: CampaignSpec, *, validate: bool = True) -> list[Run]:
                         values[entry.path] = grid_values[grids.index(entry)]
                     elif entry.paired:
                         values[entry.path] = combo[paired.index(entry)]
-                    else:
+                    elif entry.kind != "same_as":
                         values[entry.path] = drawn[entry.path]
+                for entry in spec.entries:
+                    if entry.kind == "same_as":
+                        source = values[entry.same_as]  # type: ignore[index]
+                        values[entry.path] = source + entry.offset if isinstance(source, (int, float)) \
+                            and not isinstance(source, bool) else copy.deepcopy(source)
+                values = {e.path: values[e.path] for e in spec.entries}
                 runs.append(_make_run(spec, len(runs), sample_index, seed, values, varies_seed=varies_seed,
                                       validate=validate, checked=checked))
     return runs
