@@ -379,7 +379,7 @@ def level3(subject: Subject, case: FailureCase, level1_winds: Sequence[float], o
             else:
                 hi[k] = wind
     return {"case": case.name, "failed": list(case.failed), "max_wind_mps": [round(w, 3) for w in lo],
-            "search_limit_mps": [round(h, 3) for h in hi], "runs": points}
+            "bracket_high_mps": [round(h, 3) for h in hi], "runs": points}
 
 
 # -- the command ------------------------------------------------------------------------------------------------
@@ -399,7 +399,7 @@ def run_capability(subject: Subject, cases: list[FailureCase], options: Capabili
     for case in cases:
         if case.name == "worst":
             candidates = [level1(subject, c, directions, **common) for c in subject.single_failures()]
-            worst = min(candidates, key=lambda c: polar_area(c["max_wind_mps"]))
+            worst = dict(min(candidates, key=lambda c: polar_area(c["max_wind_mps"])))
             worst["case"] = f"worst single failure: {worst['case']}"
             worst["candidates"] = {c["case"]: round(polar_area(c["max_wind_mps"]) / max(
                 polar_area(level1_cases[0]["max_wind_mps"]), 1e-9), 4) for c in candidates}
@@ -409,7 +409,8 @@ def run_capability(subject: Subject, cases: list[FailureCase], options: Capabili
     document: dict[str, Any] = {"level": options.level, "vessel": subject.vessel.name, "source": subject.source,
                                 "model_scale": subject.scale, "current_mps": options.current_mps,
                                 "directions_deg": directions, "wind_wave_relation": "DNV-ST-0111 Table 2-1",
-                                "dynamic_allowance": options.dynamic_allowance}
+                                "dynamic_allowance": options.dynamic_allowance,
+                                "search_limit_mps": options.max_wind_mps}
     if options.level == 1:
         result_cases = level1_cases
     else:
@@ -460,6 +461,10 @@ def write_polar_plot(document: Mapping[str, Any], path: Path) -> Path:
         top = max(top, float(winds.max()) if winds.size else 0.0)
         ax.plot(np.r_[directions, directions[:1]], np.r_[winds, winds[:1]], lw=2.0, marker="o", ms=3,
                 label=case["case"])
+    searched = float(document.get("search_limit_mps") or 0.0)
+    if searched and any(any(case.get("held_at_search_limit") or []) for case in document["cases"]):
+        ax.plot(np.linspace(0, 2 * math.pi, 181), np.full(181, searched), color="0.4", lw=0.8, ls="--",
+                label=f"search limit {searched:g} m/s (held there)")
     limit = max(5.0, 1.1 * top)
     for bf, (wind, _, _) in enumerate(TABLE_2_1, start=1):
         if wind <= limit:

@@ -84,6 +84,7 @@ def execute_run(run: Run) -> dict[str, Any]:
     """Run one campaign run (in a worker): ``{"status": "ok", "summary": ...}`` or ``{"status": "failed",
     "error": ...}`` — a failure of the run is its result, not the worker's."""
     wall0 = time.perf_counter()
+    cpu0 = time.process_time()
     try:
         scenario = parse_scenario(run.scenario, file=f"<run {run.run}>")
         config = parse_config(controller_mapping(scenario), file=f"<run {run.run}>")
@@ -93,7 +94,7 @@ def execute_run(run: Run) -> dict[str, Any]:
         if run.settle_s is not None:
             summary["metrics"].update(settled_metrics(result, run.settle_s))
         return {"status": "ok", "summary": summary, "wall_s": time.perf_counter() - wall0,
-                "simulated_s": result.steps * config.sample_time_s}
+                "cpu_s": time.process_time() - cpu0, "simulated_s": result.steps * config.sample_time_s}
     except KeyboardInterrupt:  # (a Ctrl-C that reached the worker: not the run's failure)
         return {"status": "interrupted"}
     except Exception as error:  # the run failed; the campaign goes on with the others
