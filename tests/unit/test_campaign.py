@@ -360,3 +360,17 @@ def test_level3_is_at_most_level1_in_every_direction(scheduler: str, tmp_path: P
     assert np.all(np.array(case["max_wind_mps"]) <= np.array(case["level1_max_wind_mps"]))
     assert any(p["held"] for points in case["runs"] for p in points)  # the loop holds in some weather
     assert any(not p["held"] for points in case["runs"] for p in points)  # and loses it in worse
+
+
+@pytest.mark.parametrize("content", [b"\x7fELF\x02\x01\x01\x00" + bytes(16) + b"\xd0\x11",
+                                     "name: Sjø\n".encode("latin-1")])
+def test_campaign_and_capability_name_a_file_that_is_not_utf8_text(content: bytes, tmp_path: Path,
+                                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "input.yaml"
+    path.write_bytes(content)
+    for argv, prefix in ((["campaign", str(path), "--out", str(tmp_path / "o")], "sim-plant campaign: "),
+                         (["capability", str(path), "--out", str(tmp_path / "o")], "sim-plant capability: ")):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"{prefix}{path}: <root>: expected UTF-8 text"), err
+        assert len(err.strip().splitlines()) == 1
