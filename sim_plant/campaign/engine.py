@@ -19,6 +19,8 @@ import logging
 import math
 import os
 import queue
+import signal
+import threading
 import time
 import traceback
 from collections.abc import Callable, Sequence
@@ -126,10 +128,18 @@ class Engine:
         if self.scheduler:
             self.client = Client(self.scheduler, timeout="20s")
         else:
-            self.cluster = LocalCluster(n_workers=self.workers or default_workers(), threads_per_worker=1,
-                                        processes=True, host="127.0.0.1", dashboard_address="127.0.0.1:0",
-                                        scheduler_kwargs={"dashboard": False},
-                                        silence_logs=logging.ERROR)
+            # The worker processes start with Ctrl-C ignored (an ignored signal stays ignored in the interpreter a
+            # process starts): a terminal's Ctrl-C reaches the whole process group, and the driver alone decides what
+            # happens — it cancels the runs and closes the cluster — instead of each worker dying with a traceback.
+            main = threading.current_thread() is threading.main_thread()
+            previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
+            try:
+                self.cluster = LocalCluster(n_workers=self.workers or default_workers(), threads_per_worker=1,
+                                            processes=True, host="127.0.0.1", dashboard_address="127.0.0.1:0",
+                                            scheduler_kwargs={"dashboard": False}, silence_logs=logging.ERROR)
+            finally:
+                if main:
+                    signal.signal(signal.SIGINT, previous)
             self.client = Client(self.cluster)
         return self
 
@@ -180,6 +190,8 @@ class Engine:
                 try:
                     future = done.get(timeout=POLL_S)
                 except queue.Empty:
+                    continue
+                if ctrl_c.pressed:  # a terminal's Ctrl-C reaches the local workers too: what ends now is not a result
                     continue
                 run = by_key[future.key]
                 if future.status == "finished":
