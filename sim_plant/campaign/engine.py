@@ -152,7 +152,7 @@ class Engine:
             self.client.close()
             self.client = None
         if self.cluster is not None:
-            self.cluster.close()
+            self.cluster.close(timeout=30)  # (workers on a loaded machine may need more than the default 5 s to stop)
             self.cluster = None
 
     @property
