@@ -459,8 +459,13 @@ def write_polar_plot(document: Mapping[str, Any], path: Path) -> Path:
     for case in document["cases"]:
         winds = np.asarray(case["max_wind_mps"], dtype=float)
         top = max(top, float(winds.max()) if winds.size else 0.0)
-        ax.plot(np.r_[directions, directions[:1]], np.r_[winds, winds[:1]], lw=2.0, marker="o", ms=3,
-                label=case["case"])
+        (line,) = ax.plot(np.r_[directions, directions[:1]], np.r_[winds, winds[:1]], lw=2.0, marker="o", ms=3,
+                          label=case["case"] if document["level"] == 1 else f"{case['case']} (level 3)")
+        if case.get("level1_max_wind_mps"):  # Level 3: its Level 1 curve for comparison (dynamics only cost)
+            static = np.asarray(case["level1_max_wind_mps"], dtype=float)
+            top = max(top, float(static.max()))
+            ax.plot(np.r_[directions, directions[:1]], np.r_[static, static[:1]], lw=1.0, ls=":",
+                    color=line.get_color(), label=f"{case['case']} (level 1)")
     searched = float(document.get("search_limit_mps") or 0.0)
     if searched and any(any(case.get("held_at_search_limit") or []) for case in document["cases"]):
         ax.plot(np.linspace(0, 2 * math.pi, 181), np.full(181, searched), color="0.4", lw=0.8, ls="--",
