@@ -6,6 +6,8 @@
   the real-time emulator (:mod:`sim_plant.emulator`) for a separately started ``dpcontrol run --config FILE``.
 * ``sim-plant demo``: emulator + daemon as two processes over all four transports, live view, report.
 * ``sim-plant bench [--json]``: simulation speed (seed 003 12 h, seed 000).
+* ``sim-plant campaign SPEC --out DIR`` and ``sim-plant capability VESSEL_OR_CONFIG --out DIR``: many lockstep
+  runs on local processes or a Dask cluster, and DP capability plots (:mod:`sim_plant.campaign.commands`).
 
 Exit status: 0 after a clean end (``hil``: duration reached, SIGTERM, SIGINT or SIGHUP), 1 when the
 emulator fails at run time (a link that cannot be opened, an error in the loop; ``hil``: no controller
@@ -48,6 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_hil(commands)
     _add_demo(commands)
     _add_bench(commands)
+    _add_campaign_commands(commands)
     return parser
 
 
@@ -386,6 +389,13 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     result = run_speed_bench(tanker_duration_s=args.tanker_duration, cs2_duration_s=args.cs2_duration)
     print(json.dumps(result, indent=2) if args.json else format_speed(result))
     return EXIT_OK
+
+
+# -- campaign, capability ------------------------------------------------------------------------------------
+def _add_campaign_commands(commands: Any) -> None:
+    from sim_plant.campaign.commands import add_campaign_commands  # noqa: PLC0415 - (argparse only: --help stays fast)
+
+    add_campaign_commands(commands)
 
 
 if __name__ == "__main__":

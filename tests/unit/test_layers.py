@@ -3,7 +3,8 @@
 * the numeric core has no I/O, no clock, no threads, no logging set-up;
 * interfaces never import the controller's runtime or algorithms;
 * the plant never imports the controller (it may use the shared vessel data in
-  ``dpcontrol.models``); only ``sim_plant.bench`` composes plant and controller.
+  ``dpcontrol.models``); only the composition packages ``sim_plant.bench`` and ``sim_plant.campaign`` (and the
+  ``sim-plant`` command line) compose plant and controller, and the plant never imports them.
 """
 
 from __future__ import annotations
@@ -67,8 +68,16 @@ def test_the_base_package_imports_no_project_package() -> None:
     assert _violations(_files("dpbase"), {"dpcontrol", "interfaces", "sim_plant"}) == []
 
 
+COMPOSITION = ("bench", "campaign")  # sim_plant's packages allowed to import the controller
+
+
+def _plant_files() -> list[Path]:
+    return [p for p in _files("sim_plant") if not set(COMPOSITION) & set(p.relative_to(ROOT).parts)
+            and p.name != "cli.py"]
+
+
 def test_plant_never_imports_the_controller() -> None:
-    files = [p for p in _files("sim_plant") if "bench" not in p.relative_to(ROOT).parts]
+    files = _plant_files()
     assert files, "sim_plant has no sources"
     assert _violations(files, CONTROLLER) == []
 
@@ -78,3 +87,13 @@ def test_operator_tools_speak_only_zenoh() -> None:
     imports the controller's runtime or algorithms (it may use the shared vessel data in dpcontrol.models)."""
     files = [ROOT / "dpcontrol" / name for name in ("console.py", "monitor.py", "setpoint.py")]
     assert _violations(files, CONTROLLER | {"sim_plant"}) == []
+
+
+def test_plant_never_imports_the_composition_layer() -> None:
+    forbidden = {f"sim_plant.{name}" for name in COMPOSITION} | {"sim_plant.cli"}
+    assert _violations(_plant_files(), forbidden) == []
+
+
+def test_the_composition_packages_exist() -> None:
+    for name in COMPOSITION:  # (a renamed package would silently leave the plant rule checking nothing of it)
+        assert (ROOT / "sim_plant" / name / "__init__.py").exists()
