@@ -7,7 +7,7 @@ Measures
   variables) and the built-in supply and shuttle-tanker layouts, under a smooth random demand
   (std 10 % of the capability scale Σ|B|·Tmax per DOF, two 20 s lags) with rate limits at 10 Hz;
   ``azimuth8_saturating`` (std 40 %) is saturated most of the time, the solver's hardest case.
-  Target (issue 4): p99 ≤ 300 µs for 8 thrusters.
+  Target (docs/design.md §6): p99 ≤ 300 µs for 8 thrusters.
 * ``control``: reference model + MRAC (and + PID) step on the supply vessel. Target: p99 ≤ 100 µs.
 * ``--compare-solvers``: the same allocation QPs (captured from the 8-azimuth allocator) solved by
   daqp (the allocator's warm-started model, and cold ``daqp.solve``), quadprog and OSQP (warm

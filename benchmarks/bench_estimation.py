@@ -2,9 +2,9 @@
 
 Measures, per call of ``step()`` (correct + weights + blend + predict), on CyberShip II data:
 
-* ``mmae``: the batched bank, N = 8 models × 15 states (issue 3 target: p99 ≤ 150 µs; DESIGN.md §6
+* ``mmae``: the batched bank, N = 8 models × 15 states (issue 3 target: p99 ≤ 150 µs; docs/design.md §6
   budget for a well-written batched bank: about 12 µs);
-* ``mmae_loop``: the same bank written as a Python loop over 8 single filters (the DESIGN.md §6
+* ``mmae_loop``: the same bank written as a Python loop over 8 single filters (the docs/design.md §6
   comparison, about 130 µs), to show what batching buys;
 * ``kf`` (steady state), ``kf_tv`` (time-varying Joseph form), ``raw``, ``rpem``;
 * ``predicted_measurement``: the sensor hub's per-step query.

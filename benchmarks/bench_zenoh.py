@@ -4,7 +4,7 @@ Measures
 
 * ``raw``: round trip of a small payload between two peer sessions in this process over
   ``tcp/127.0.0.1`` — publisher A → subscriber B echoes on another key → subscriber A
-  (DESIGN.md §6 budget: about 130 µs median, 180 µs p99);
+  (docs/design.md §6 budget: about 130 µs median, 180 µs p99);
 * ``full``: the same loop through the real schemas — A builds and puts a thruster command
   (8 thrusters), B's validating subscriber parses it and echoes a feedback message, A's validating
   subscriber parses that;

@@ -1,4 +1,4 @@
-"""The README's fault table (issue 8): every fault-injection scenario of ``sim_plant/scenarios/faults/``
+"""The README's fault table (docs/fault-handling.md): every fault-injection scenario of ``sim_plant/scenarios/faults/``
 run in lockstep, each injected fault with the delay to the alarm that proves its detection, the
 configured bound, the response (mode changes, fall-backs) and the station keeping measured.
 

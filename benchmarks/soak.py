@@ -1,4 +1,4 @@
-"""Soak benchmark: 24 h of simulated DP with a random fault every few minutes (issue 8).
+"""Soak benchmark: 24 h of simulated DP with a random fault every few minutes (docs/fault-handling.md).
 
 The supply vessel keeps station in lockstep — plant, sensors through the real codecs, the daemon's
 hub, wave filter, PID, allocator and thruster monitor, one process, stepped clock — for ``hours`` of

@@ -1,4 +1,4 @@
-"""Captured-log decoding behind ``dpcontrol decode PROTOCOL FILE`` (DESIGN.md §4.1).
+"""Captured-log decoding behind ``dpcontrol decode PROTOCOL FILE`` (docs/design.md §4.1).
 
 Each protocol has one generator ``decode_<protocol>_log(source, stats=None) -> Iterator[dict]``
 registered in :data:`LOG_DECODERS`; :func:`decode_log` dispatches on the protocol name. Every

@@ -1,4 +1,4 @@
-"""Black-box recorder: every input, decision and command of the control loop, in MCAP (issue 9).
+"""Black-box recorder: every input, decision and command of the control loop, in MCAP (docs/design.md §10).
 
 "Nothing lost": after an incident a DP engineer must be able to reconstruct every raw input (with
 its receive time, rejected ones with the reason), every estimate, reference, control and allocation
@@ -89,7 +89,7 @@ logger = logging.getLogger(__name__)
 
 @dataclass(frozen=True)
 class RecorderSettings:
-    """Black-box recorder settings (issue 9): ``path`` is a directory (None: recording off); sizes in
+    """Black-box recorder settings (docs/design.md §10): ``path`` is a directory (None: recording off); sizes in
     MB (10⁶ bytes); ``flush_s`` ≤ 1 bounds what a SIGKILL loses."""
 
     path: str | None = None

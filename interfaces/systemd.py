@@ -7,7 +7,7 @@ adding a dependency (``python-systemd`` needs libsystemd headers to build; ``sdn
 thin, unmaintained wrapper of the same twenty lines).
 
 This module only *sends*. When to send is the control loop's decision, and the rule is strict
-(DESIGN.md §5): ``WATCHDOG=1`` only from a healthy control loop, never from a side thread — a
+(docs/design.md §5): ``WATCHDOG=1`` only from a healthy control loop, never from a side thread — a
 thread that pings systemd while the loop hangs keeps a dead controller "alive". Send it every
 ``watchdog_interval_s() / 2`` at most.
 

@@ -1,4 +1,4 @@
-"""The real-time hardware-in-the-loop emulator behind ``sim-plant hil`` (DESIGN.md §4.1).
+"""The real-time hardware-in-the-loop emulator behind ``sim-plant hil`` (docs/design.md §4.1).
 
 The plant of a scenario (:class:`sim_plant.plant.Plant`) runs in real time against a separately
 started ``dpcontrol run --config FILE``, on the transports that file configures
@@ -533,7 +533,7 @@ class HilEmulator:
             done = time.monotonic()
             self.stats.add(late, done - woke)
             if watchdog_s is not None and late < catchup_s and done >= next_watchdog:
-                self.notifier.watchdog()  # only from the loop, only while it keeps up (DESIGN §5)
+                self.notifier.watchdog()  # only from the loop, only while it keeps up (docs/design.md §5)
                 next_watchdog = done + watchdog_s / 2.0
             if final:
                 break

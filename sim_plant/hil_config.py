@@ -2,7 +2,7 @@
 
 ``sim-plant hil SCENARIO --controller-config FILE`` must speak to the daemon on exactly the ports,
 buses and addresses the daemon was configured with. Those live in the daemon's configuration file
-(``dpcontrol run --config FILE``), but the plant never imports the controller (DESIGN.md §1), so
+(``dpcontrol run --config FILE``), but the plant never imports the controller (docs/design.md §1), so
 this module reads the few keys it needs from that file itself. It is a reader of a *file format*,
 not controller code: every key it reads is validated (errors name the file, the key path and what
 was expected, like every other configuration error of the project); every other key is left to the

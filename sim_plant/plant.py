@@ -85,7 +85,7 @@ class PlantTruth:
         Wave spectrum peak ωp of the sea state in force (None in calm water).
     motion_peak_rad_s : float or None
         Peak of |RAO|²S of the dominant DOF (encounter frequency when moving) — judge the wave
-        filter's ω̂ against this (DESIGN trap 3).
+        filter's ω̂ against this (docs/design.md §5, trap 3).
     motion_peaks_rad_s : tuple or None
         Surge, sway, yaw motion peaks (None entries where a DOF does not move).
     mass_factor : float
@@ -124,7 +124,7 @@ class PlantTruth:
     surge_mass_kg: float
 
     def columns(self) -> dict[str, float | None]:
-        """The truth columns of ``sim-plant run``'s timeseries.csv (DESIGN.md §4.3), plus
+        """The truth columns of ``sim-plant run``'s timeseries.csv (docs/design.md §4.3), plus
         ``motion_peak_rad_s``."""
         return {
             "t_s": self.t_s,

@@ -1,4 +1,4 @@
-"""Scenario files (DESIGN.md §4.2): YAML → validated, frozen :class:`Scenario`.
+"""Scenario files (docs/design.md §4.2): YAML → validated, frozen :class:`Scenario`.
 
 Every error names the file, the key path and what was expected, and a misspelt key is rejected
 by name (``dpbase.schema.Section.finish``)::

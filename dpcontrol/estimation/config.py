@@ -15,7 +15,7 @@ damping matrices, so one rule serves a 1.3 m model (CyberShip II) and a 260 m ta
   yaw, the motion of a moderate sea. ``wf_noise_rule = "equal_variance"`` (default): each model of
   the bank gets the intensity ``q1 = 4ζ·ω0·σ_wf²``, so every model expects the same WF motion
   variance and the models differ only in spectral shape — one of the two remedies for the MMAE trap
-  of DESIGN.md §5 (the other, the common error scale, is ``likelihood_scale``); on the seed 001
+  of docs/design.md §5 (the other, the common error scale, is ``likelihood_scale``); on the seed 001
   sea-state sequence it tracks the moderate sea more reliably than the alternative.
   ``"equal_intensity"`` (seed 000): one intensity ``q1 = 4ζ·ω_ref·σ_wf²`` for all models (σ_wf at the
   reference frequency ω_ref, geometric mean of the grid), so lower-frequency models expect more WF
@@ -126,7 +126,7 @@ class WaveFilterConfig:
         gate (:class:`~dpcontrol.estimation.weighting.BandLikelihood`, what works in closed loop on a
         real plant); ``common``: per-sample error measure with one fixed normalising covariance
         (minimum-energy criterion, seed 001 ref. [21]); ``own``: seed 000's ``β_i e^{−m_i}`` with each
-        filter's innovation covariance S_i (prone to the DESIGN.md §5 trap on real seas).
+        filter's innovation covariance S_i (prone to the docs/design.md §5 trap on real seas).
     likelihood_band_rad_s : (float, float) or None
         Prefilter pass band of the ``band`` likelihood [rad/s] (None: ``[ω_1/2, 1.5·ω_N]``).
     likelihood_time_s : float or None

@@ -28,7 +28,7 @@ Process noise ``w = [w1, w2, w3]`` (9,) with diagonal intensity ``Qc = diag(Q1, 
 w2 is a force [N, N, N·m → Q2 in N²·s, N²·s, N²·m²·s], w3 drives the bias
 [N/s, N/s, N·m/s → Q3 in N²/s, N²/s, N²·m²/s].
 
-WF noise intensity rule (see DESIGN.md §5, the MMAE trap): for ``ẍ + 2ζω0ẋ + ω0²x = w`` with
+WF noise intensity rule (see docs/design.md §5, the MMAE trap): for ``ẍ + 2ζω0ẋ + ω0²x = w`` with
 intensity q the WF motion ``ξ2 = ẋ`` has variance ``q / (4ζω0)``. :func:`wf_intensity_for_variance`
 returns the intensity that gives every model of a bank the *same* WF motion variance, so the
 models differ only in spectral shape, not in how much wave motion they expect.

@@ -30,7 +30,7 @@ By default the models are compared on band-limited, locally whitened and tempere
 (:class:`~dpcontrol.estimation.weighting.BandLikelihood`: only the wave band, a scale-free measure,
 evidence counted at the rate of independent samples, held while the LF model is in a transient,
 position and heading weighted by the share of the WF motion measured in each), and each
-model's WF noise intensity gives every model the same WF variance — the remedies for the DESIGN.md §5
+model's WF noise intensity gives every model the same WF variance — the remedies for the docs/design.md §5
 trap and for the chatter of per-sample likelihoods on a real plant. The per-sample forms
 (``likelihood_scale="common"``/``"own"``) remain for design-model data. Weights follow the discrete
 Bayes recursion with forgetting and a floor (:mod:`~dpcontrol.estimation.weighting`), or the exactly

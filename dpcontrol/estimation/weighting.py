@@ -65,7 +65,7 @@ statistically honest rate:
    (the supply vessel's calm sea: 0.13° of WF yaw against a 0.05° gyro, 9 cm of WF surge against a
    0.3 m DGPS) — counts when the waves yaw the vessel.
 
-Why weights must not lock (DESIGN.md §5, seed 001 Fig. 3): both generators drive the weight of a
+Why weights must not lock (docs/design.md §5, seed 001 Fig. 3): both generators drive the weight of a
 model that is worse *now* towards zero geometrically; once it underflows, no later evidence can
 raise it (0 × anything = 0), so after a sea-state change the bank stays on the old model. Two
 remedies, both applied:

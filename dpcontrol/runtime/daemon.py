@@ -5,7 +5,7 @@ messages into :class:`InputPump`'s queue; Zenoh callbacks fill the setpoint inbo
 feedback slot. The loop thread (the main thread) owns everything else: at every deadline it drains
 the inputs, runs :meth:`DpController.step` (the same step the lockstep simulation runs), publishes
 the command first, then estimate, MMAE, control and status, records, persists its state and — only
-then, from this healthy loop — sends ``WATCHDOG=1`` to systemd (DESIGN.md §5: a side thread pinging
+then, from this healthy loop — sends ``WATCHDOG=1`` to systemd (docs/design.md §5: a side thread pinging
 the watchdog would keep a hung loop "alive").
 
 Deadline scheduling: deadlines are ``t0 + k·T``; a late cycle runs at once, cycles that are missed

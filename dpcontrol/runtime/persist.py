@@ -1,4 +1,4 @@
-"""Persisted estimator/controller state for a bumpless restart (issue 9).
+"""Persisted estimator/controller state for a bumpless restart (docs/design.md §10).
 
 When the daemon restarts (crash, watchdog, update), it should resume with the wave filter's and the
 controller's state instead of re-converging from zero — but only from a state that is complete,

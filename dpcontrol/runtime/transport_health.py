@@ -1,4 +1,4 @@
-"""Health of the sensor transports (issue 8 §8, §9), shared by the daemon and the lockstep simulation.
+"""Health of the sensor transports (docs/fault-handling.md), shared by the daemon and the lockstep simulation.
 
 Two things are watched per transport (serial port, CAN bus, MAVLink link):
 

@@ -6,7 +6,7 @@ stream into sentences and turns each into typed messages of :mod:`interfaces.mes
 checksum is verified here on the bytes (pynmea2's own check XORs ``ord()`` of each character, three times
 the cost) and a sentence whose checksum does not match is handed to ``pynmea2.parse(..., check=True)``
 whole, so what is rejected and why is pynmea2's verdict either way. Everything pynmea2 does not do safely
-is done here (DESIGN.md §5):
+is done here (docs/design.md §5):
 
 * the checksum is *mandatory* (pynmea2 accepts a sentence without one unless told);
 * validity flags are read *before* values: GGA quality 0, RMC status ``V``, FAA mode ``N``
@@ -137,7 +137,7 @@ _NOT_MEASURED = frozenset({FixQuality.MANUAL, FixQuality.SIMULATION})
 _MWV_SPEED_UNIT_MPS = {"M": 1.0, "K": 1.0 / 3.6, "N": KNOT_MPS, "S": 0.44704}
 
 
-# pynmea2 1.19 has no THS (DESIGN.md §5). Subclassing TalkerSentence is pynmea2's documented way
+# pynmea2 1.19 has no THS (docs/design.md §5). Subclassing TalkerSentence is pynmea2's documented way
 # to add a sentence: its metaclass registers the class by name, so this is the one import-time
 # effect of this module (idempotent, and skipped if a later pynmea2 brings its own THS).
 if "THS" not in pynmea2.TalkerSentence.sentence_types:

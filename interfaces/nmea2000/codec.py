@@ -14,8 +14,8 @@ written here, and why:
 * **Fast-packet fragmentation** (encoder side) — ``fast_packet_fragment``.
 * **Fast-packet reassembly** is written here (:class:`FastPacketAssembler`): the library's
   ``Reassembler`` has no clock, so stale partial messages never expire and a lost frame is never
-  reported; we must count every dropped message and bound the state (DESIGN §5 "nothing a sensor
-  sends may crash the code" and issue 6 §2).
+  reported; we must count every dropped message and bound the state (docs/design.md §5 "nothing a sensor
+  sends may crash the code" and docs/protocols.md).
 * **Payload length check** is written here: the library decodes a truncated single frame into a
   number built from the bytes that are there (a 2-byte 129025 decodes to latitude 5.13e-05°), so a
   payload shorter than the fields we read is rejected before decoding.

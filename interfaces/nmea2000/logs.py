@@ -1,4 +1,4 @@
-"""NMEA 2000 captures → the JSON-line objects of ``dpcontrol decode nmea2000 FILE`` (DESIGN §4.1).
+"""NMEA 2000 captures → the JSON-line objects of ``dpcontrol decode nmea2000 FILE`` (docs/design.md §4.1).
 
 Any format of :mod:`interfaces.nmea2000.logformats` (candump, Actisense, canboat PLAIN/FAST, Yacht
 Devices raw, iKonvert, PCAN-View, SocketCAN pcap/pcapng), detected from the file or named. One object

@@ -1,6 +1,6 @@
 """NMEA 2000 transport over python-can: a reader thread, a writer, and the remote-bus server.
 
-The CAN interface is configuration, not code (DESIGN §5): :class:`CanBusConfig` names a
+The CAN interface is configuration, not code (docs/design.md §5): :class:`CanBusConfig` names a
 python-can ``interface`` + ``channel`` (+ keyword options) —
 
 * ``socketcan`` / ``can0`` on a vessel,

@@ -1,5 +1,5 @@
 """Eclipse Zenoh interface: explicit session config, payload schemas, publishers/subscribers,
-config queryable and liveliness (DESIGN.md §4.4).
+config queryable and liveliness (docs/design.md §4.4).
 
 * :mod:`interfaces.zenoh.keys` — ``dp/<vessel>/…`` key expressions, vessel ID validation;
 * :mod:`interfaces.zenoh.config` — :class:`ZenohConfig` and :func:`open_session` (peer mode,

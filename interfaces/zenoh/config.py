@@ -1,4 +1,4 @@
-"""Explicit Zenoh session configuration (DESIGN.md §4.4 and the §5 trap).
+"""Explicit Zenoh session configuration (docs/design.md §4.4 and the §5 trap).
 
 Zenoh's defaults are wrong for a vessel network: a peer listens on every interface
 (``tcp/[::]:0``) and scouts by UDP multicast, so a DP controller would announce itself to, and

@@ -1,4 +1,4 @@
-"""Zenoh key expressions of one vessel (DESIGN.md §4.4).
+"""Zenoh key expressions of one vessel (docs/design.md §4.4).
 
 Every key lives under ``dp/<vessel>/``; the vessel ID becomes one key chunk, so it must not contain
 the key separator ``/``, the wildcards ``*``/``$``, the selector characters ``?``/``#`` or

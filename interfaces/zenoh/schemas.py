@@ -1,4 +1,4 @@
-"""Every Zenoh payload schema of dpcontrol, in one place (DESIGN.md §4.4).
+"""Every Zenoh payload schema of dpcontrol, in one place (docs/design.md §4.4).
 
 Payloads are UTF-8 JSON objects (zenoh encoding ``application/json``) with a common envelope:
 

@@ -360,7 +360,7 @@ def run_demo(scenario_path: Path, run_dir: Path | None = None, *, duration_s: fl
         shutil.rmtree(short, ignore_errors=True)
 
 
-# issue 7's HIL benchmarks at 10 Hz: cycle start → command published p99 and period jitter p99 [µs]
+# the HIL latency budgets (docs/performance.md) at 10 Hz: cycle start → command published p99 and period jitter p99 [µs]
 PUBLISHED_P99_TARGET_US = 2000.0
 JITTER_P99_TARGET_US = 2000.0
 

@@ -1,7 +1,7 @@
 """Lockstep closed loop: the plant and the real controller step, one process, a stepped clock.
 
 This is the one place (with the rest of ``sim_plant/bench``) allowed to import both the plant and
-the controller (DESIGN.md §1). The controller is the daemon's :class:`~dpcontrol.runtime.step.DpController`
+the controller (docs/design.md §1). The controller is the daemon's :class:`~dpcontrol.runtime.step.DpController`
 — the same step, the same sensor hub, the same routing — and every sensor sample goes through the
 real protocol codecs: plant sample → encoder → bytes → the daemon's decoders → measurement. So
 quantisation, checksums and validity flags are exercised in every simulated second.
@@ -418,7 +418,7 @@ _NAN_MRAC = (math.nan,) * len(MRAC_COLUMNS)
 
 
 def column_names(n_models: int, thruster_names: list[str]) -> list[str]:
-    """DESIGN.md §4.3 columns, then per-thruster commands and a few extras."""
+    """docs/design.md §4.3 columns, then per-thruster commands and a few extras."""
     return (TRUTH_COLUMNS + MEASUREMENT_COLUMNS + ESTIMATE_COLUMNS + REFERENCE_COLUMNS + FORCE_COLUMNS
             + [f"weight_{i}" for i in range(n_models)] + TAIL_COLUMNS + MRAC_COLUMNS
             + [f"thrust_{name}_n" for name in thruster_names] + [f"azimuth_{name}_rad" for name in thruster_names]

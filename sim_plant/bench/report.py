@@ -1,10 +1,10 @@
-"""Outputs of ``sim-plant run``: ``timeseries.csv``, ``summary.json`` and the PNG plots (DESIGN.md §4.3).
+"""Outputs of ``sim-plant run``: ``timeseries.csv``, ``summary.json`` and the PNG plots (docs/design.md §4.3).
 
-The time series has one row per control step and the columns of DESIGN.md §4.3 (empty cell where
+The time series has one row per control step and the columns of docs/design.md §4.3 (empty cell where
 a value does not exist, headings wrapped to (−π, π]); the summary lists the bank's model
 frequencies and the metrics an engineer judges a run by: station-keeping error against the
 reference, estimation error against the plant's true low-frequency motion, the wave filter's
-frequency estimate against the wave and motion spectrum peaks (DESIGN.md §5 trap 3), the
+frequency estimate against the wave and motion spectrum peaks (docs/design.md §5 trap 3), the
 wave-frequency content of the commanded force, the MRAC mass estimate against the true mass, and
 the alarms and mode changes.
 """
@@ -489,7 +489,7 @@ def _save(fig: Any, path: Path) -> Path:
 
 
 # ------------------------------------------------------------------------------------------------
-# Fault injections: which alarm proves each one was detected, and when it was due (issue 8)
+# Fault injections: which alarm proves each one was detected, and when it was due (docs/fault-handling.md)
 # ------------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class FaultDetection:

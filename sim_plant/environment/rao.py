@@ -22,7 +22,7 @@ same decay power:
 Consequences (tested): long waves (λ ≫ L) move the vessel with the water particles (|x/ζ| → |cos β|,
 |y/ζ| → |sin β|) and yaw it with the wave slope (ψ/ζ → k sin 2β / 2); waves shorter than the hull
 are averaged out, so a long vessel's motion spectrum |RAO|²·S peaks *below* the wave peak (seed 003
-Fig. 4: tanker surge motion peak 12.5 s for 10 s waves; DESIGN trap 3), while a short one
+Fig. 4: tanker surge motion peak 12.5 s for 10 s waves; docs/design.md §5, trap 3), while a short one
 (CyberShip II) follows the waves and its motion peak sits on the wave peak.
 
 Phases: the surge/sway displacement is that of the particles, ``a sin φ`` for an elevation

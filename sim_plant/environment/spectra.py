@@ -103,7 +103,7 @@ def frequency_bins(omega_peak_rad_s: float, gamma: float, n: int, spectrum: str 
 
     The edges are equal-probability quantiles of the density ``√(S/S_max) + 0.1``: the peak region
     gets bins about ten times narrower than the tails, yet the tails (where a long hull's motion
-    peak can sit, DESIGN trap 3) keep enough components.
+    peak can sit, docs/design.md §5, trap 3) keep enough components.
 
     Returns
     -------

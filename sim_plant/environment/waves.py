@@ -293,7 +293,7 @@ def motion_variances(state: SeaState, hull: HullDimensions, beta_rad: float,
 
 @dataclass(frozen=True, slots=True)
 class SpectrumPeaks:
-    """Peaks that judge a wave filter (DESIGN trap 3).
+    """Peaks that judge a wave filter (docs/design.md §5, trap 3).
 
     Attributes
     ----------

@@ -1,4 +1,4 @@
-"""Issue 8 cases 8 and 9: malformed traffic, a serial port unplugged, a MAVLink heartbeat lost.
+"""Fault cases 8 and 9: malformed traffic, a serial port unplugged, a MAVLink heartbeat lost.
 
 In lockstep (``sim_plant/scenarios/faults/08-*.yaml``, ``09-*.yaml``) the protocol faults are carried out on
 the bytes and link states the daemon would see (``sim_plant.bench.lockstep._Inputs``), and counted by the

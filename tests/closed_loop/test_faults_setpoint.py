@@ -1,4 +1,4 @@
-"""Issue 8 case 12: an operator setpoint 1 km away, and a garbage setpoint message.
+"""Fault case 12: an operator setpoint 1 km away, and a garbage setpoint message.
 
 * In lockstep (``sim_plant/scenarios/faults/12-setpoint-far.yaml``): the reference moves to the far target
   at the guidance limits and the demanded force has no spike — per step it changes no more than in the

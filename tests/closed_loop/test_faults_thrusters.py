@@ -1,4 +1,4 @@
-"""Issue 8 case 10: thruster failures from the drives' feedback, re-allocation, capability shortfall.
+"""Fault case 10: thruster failures from the drives' feedback, re-allocation, capability shortfall.
 
 ``sim_plant/scenarios/faults/10-thruster-failures.yaml`` (a tripped azimuth, then a tunnel that loses its
 propeller) and ``10-thruster-capability.yaml`` (both tunnels trip in a beam wind, then an azimuth turns

@@ -7,7 +7,7 @@ in lockstep for 450 s (a few seconds of wall time). Headlines (issue 3, seed 000
 * the weights settle on the 0.9 rad/s model and stay there: no chatter (the bug guarded here, also in
   the old conditions — Hs = 1.2 m, default tuning — where the per-sample likelihood made all eight
   models take turns at weight 1.0 every second);
-* the estimated peak frequency agrees with the plant's *motion* spectrum peak (DESIGN.md trap 3);
+* the estimated peak frequency agrees with the plant's *motion* spectrum peak (docs/design.md §5, trap 3);
 * CyberShip II follows the 10 m step and keeps station within the bounds documented below.
 
 Timing, measured (seed 1, see the report): the 0.9 model leads from ≈ 227 s and its weight exceeds
@@ -110,7 +110,7 @@ def test_no_chatter_in_the_conditions_that_made_the_weights_chatter(likelihood: 
 
 
 def test_omega_hat_matches_the_motion_spectrum_peak(run: RunResult) -> None:
-    """ω̂ = Σ p_i ω_i against the plant's |RAO|²S peak (DESIGN.md trap 3), over the last 100 s."""
+    """ω̂ = Σ p_i ω_i against the plant's |RAO|²S peak (docs/design.md §5, trap 3), over the last 100 s."""
     t = _col(run, "t_s")
     tail = t >= DURATION_S - 100.0
     omega_hat = _col(run, "omega_hat_rad_s")[tail]

@@ -7,7 +7,7 @@ stops both with SIGTERM and checks:
 
 * the daemon reached DP (the emulator engages it as the operator) and held CyberShip II within the
   documented bound, and followed the setpoint change;
-* every key of DESIGN.md §4.4 the daemon publishes arrived at the configured 10 Hz, the config
+* every key of docs/design.md §4.4 the daemon publishes arrived at the configured 10 Hz, the config
   queryable answered and the liveliness tokens of both were seen;
 * both exited 0 on SIGTERM and the last command the plant received commanded zero thrust.
 """

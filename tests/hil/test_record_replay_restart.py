@@ -1,4 +1,4 @@
-"""Black-box recorder, exact replay and bumpless restart on the HIL bench (issue 9).
+"""Black-box recorder, exact replay and bumpless restart on the HIL bench (docs/design.md §10).
 
 One HIL session (emulator + daemon as two processes, all transports) is used for three checks:
 

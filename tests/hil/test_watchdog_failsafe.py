@@ -1,4 +1,4 @@
-"""The controller stalls or dies (issue 7 §3, issue 8 §11).
+"""The controller stalls or dies (docs/fault-handling.md, case 11).
 
 * A stalled daemon (SIGSTOP) stops sending ``WATCHDOG=1``; the test plays systemd with
   ``WatchdogSec=1``: it notices the silence, kills and restarts the daemon, which comes back READY

@@ -1,4 +1,4 @@
-"""Issue 8 case 13: an invalid configuration is refused at start with the key named — every sensor,
+"""Fault case 13: an invalid configuration is refused at start with the key named — every sensor,
 transport, thruster, hub, fall-back, thruster-monitor and consequence field, each given a value of the wrong type.
 
 The field lists are the parsers' own key sets (written out here so that a new field without a test

@@ -148,7 +148,8 @@ def test_a_loss_that_holds_with_little_margin_is_a_warning() -> None:
 
 def test_a_restart_resumes_the_average() -> None:
     """The persisted state carries the average and how long it ran: a controller resumed in DP checks at its first
-    cycle instead of averaging ``averaging_s`` again, with the demand it had (issue 9 §4's bumpless restart)."""
+    cycle instead of averaging ``averaging_s`` again, with the demand it had (the bumpless restart,
+    docs/installation.md)."""
     before, _alarms = _monitor()
     _drive(before, 0.0, 45.0, "auto_position", [0.0, 150e3, 0.0])
     state = before.state_dict(44.9)

@@ -30,7 +30,7 @@ def test_a_good_run_reads_as_one() -> None:
     assert "station keeping, true position against the set-point over the second half of the run: " \
            "0.043 m at most, 0.009 m rms" in text and "set-point 2 m N, 0 m E" in text
     assert "1164 cycles, 0 missed deadlines, 0 step errors" in text
-    assert "command published 2.26 ms (OVER 2 ms)" in text  # the target is issue 7's, the value this run's
+    assert "command published 2.26 ms (OVER 2 ms)" in text  # the target is the HIL budget's, the value this run's
     assert "period jitter 0.69 ms (within 2 ms)" in text
     assert "loop thread: SCHED_FIFO 50" in text
     assert "host steal 1.16 %" in text

@@ -1,4 +1,4 @@
-"""MMAE wave filter acceptance tests (issue 3): seed 000 reproduction, a JONSWAP sea, the DESIGN.md §5
+"""MMAE wave filter acceptance tests (issue 3): seed 000 reproduction, a JONSWAP sea, the docs/design.md §5
 trap, and seed 001's sea-state changes."""
 
 from __future__ import annotations
@@ -113,7 +113,7 @@ def test_realistic_sea_picks_the_motion_peak(omega_peak: float) -> None:
 
 
 def test_common_scale_avoids_the_lowest_frequency_trap() -> None:
-    """DESIGN.md §5: with each filter's own S_i (seed 000 β_i e^{−m_i}) a JONSWAP sea weaker than the
+    """docs/design.md §5: with each filter's own S_i (seed 000 β_i e^{−m_i}) a JONSWAP sea weaker than the
     tuning expects drives the bank to the lowest frequency; the common normalising covariance does not."""
     y, lf = _jonswap_run(0.93, 0.3, seed=77)
     own = run_filter(make_wave_filter(_cs2_config(kind="mmae", omegas_rad_s=GRID, likelihood_scale="own")),

@@ -2,7 +2,7 @@
 
 * :func:`jonswap_spectrum` and :func:`jonswap_motion`: WF motion as a sum of ≥ 100 sinusoids from a
   JONSWAP spectrum — a sea that is *not* the filters' second-order design model. With a flat RAO
-  (motion = gain × elevation) the motion spectrum peaks where the wave spectrum does (DESIGN.md §5,
+  (motion = gain × elevation) the motion spectrum peaks where the wave spectrum does (docs/design.md §5,
   trap 3), so the JONSWAP peak frequency is the "true" ω0.
 * :func:`simulate_design_model`: data generated *by* the 15-state design model with its process
   noise (seed 000 reproduction), exactly discretised.

@@ -1,4 +1,4 @@
-"""The layer rule of DESIGN.md §1, checked on the source: imports point down only.
+"""The layer rule of docs/design.md §1, checked on the source: imports point down only.
 
 * the numeric core has no I/O, no clock, no threads, no logging set-up;
 * interfaces never import the controller's runtime or algorithms;

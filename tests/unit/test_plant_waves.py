@@ -98,7 +98,7 @@ def test_rao_averages_out_waves_shorter_than_the_hull() -> None:
 
 
 def test_long_hull_motion_peak_is_below_the_wave_peak() -> None:
-    """Seed 003 Fig. 4 / DESIGN trap 3: tanker surge peak at a longer period than the waves (10 s)."""
+    """Seed 003 Fig. 4 / docs/design.md §5, trap 3: tanker surge peak at a longer period than the waves (10 s)."""
     sea = SeaState(0.0, 2.0, 2.0 * math.pi / 10.0, 0.0, "pierson_moskowitz", 1.0)
     surge_peak, _, _ = motion_peaks(sea, _hull(SHUTTLE_TANKER), math.pi)
     assert 2.0 * math.pi / surge_peak > 11.0
