@@ -102,6 +102,9 @@ class ThrusterMonitorSettings:
 
     feedback_timeout_s: float = 2.0
     mismatch_fraction: float = 0.25
+    # absolute floor of the mismatch limit, a share of each drive's rating: a drive asked for (almost) nothing is
+    # never judged on noise (see dpcontrol.runtime.thrusters)
+    mismatch_floor_fraction: float = 0.05
     mismatch_persist_s: float = 5.0
     shortfall_fraction: float = 0.1
     shortfall_persist_s: float = 10.0
@@ -474,6 +477,7 @@ def _parse(mapping: object, text: str, file: str | None) -> DaemonConfig:
     monitor = ThrusterMonitorSettings(
         feedback_timeout_s=tm.number("feedback_timeout_s", 2.0, minimum=0.0, exclusive_minimum=True),
         mismatch_fraction=tm.number("mismatch_fraction", 0.25, minimum=0.0, exclusive_minimum=True),
+        mismatch_floor_fraction=tm.number("mismatch_floor_fraction", 0.05, minimum=0.0, exclusive_minimum=True),
         mismatch_persist_s=tm.number("mismatch_persist_s", 5.0, minimum=0.0),
         shortfall_fraction=tm.number("shortfall_fraction", 0.1, minimum=0.0, exclusive_minimum=True),
         shortfall_persist_s=tm.number("shortfall_persist_s", 10.0, minimum=0.0),

@@ -218,6 +218,10 @@ class DpController:
         self._engaged_once = False
         self._shortfall_since: float | None = None
         self._dead_reckoning_alarm = False  # position.dead_reckoning / heading.lost raised (to be cleared)
+        # (available mask, mode) → why the available thrusters cannot hold that mode's DOFs ("" they can); the mode
+        # whose refusal raised thrusters.insufficient (None: not raised)
+        self._thrust_verdicts: dict[tuple[bytes, Mode], str] = {}
+        self._insufficient_for: Mode | None = None
         self._heading_lost_alarm = False
         # every request's outcome, newest last: the status lists the last second's (several in one cycle each
         # get their own answer) and the last (a sender finds its seq there)
@@ -429,6 +433,8 @@ class DpController:
 
         # --- thruster health and allocation
         available = self.monitor.update(t_s, dt, out.thrust_n)
+        if self._insufficient_for is not None:
+            self._clear_insufficient(t_s)
         self._allocate(dt, available, rudder_command)
         t4 = clock() if clock else 0.0
 
@@ -567,6 +573,8 @@ class DpController:
                 refuse = "no heading reference"
             elif wanted is Mode.AUTO_POSITION and not hub.position_available:
                 refuse = "no position reference"
+            else:
+                refuse = self._thrusters_insufficient(t_s, wanted) or None
             if refuse is not None:
                 text = f"{wanted.value} refused: {refuse}"
                 out.rejected_requests.append(text)
@@ -597,6 +605,57 @@ class DpController:
         self._fallback_reason = ""
         self.mode = wanted
         self._requested_mode = wanted
+
+    def _thrusters_insufficient(self, t_s: float, mode: Mode) -> str:
+        """Why the thrusters available now cannot hold ``mode``'s degrees of freedom ("" when they can), raising
+        ``thrusters.insufficient`` (critical) when they cannot: a controlled mode engaged without the means to
+        hold it is a drift-off the operator believes is DP. ``auto_position`` holds surge, sway and yaw,
+        ``auto_heading`` yaw; the available thrusters' columns of the configuration matrix B must span them
+        (rank), a necessary condition the allocation's capability alarm completes with the forces needed."""
+        available = self.monitor.available
+        key = (available.tobytes(), mode)
+        verdict = self._thrust_verdicts.get(key)
+        if verdict is None:
+            verdict = self._judge_thrusters(available, mode)
+            if len(self._thrust_verdicts) < 256:  # (masks seen; bounded for a fleet of many drives)
+                self._thrust_verdicts[key] = verdict
+        if verdict:
+            self.alarms.raise_(t_s, "thrusters.insufficient", Severity.CRITICAL, f"{mode.value} refused: {verdict}")
+            self._insufficient_for = mode
+        return verdict
+
+    def _judge_thrusters(self, available: np.ndarray, mode: Mode) -> str:
+        """:meth:`_thrusters_insufficient`'s verdict for an availability mask (uncached)."""
+        if not available.any():
+            return "no thruster available"
+        if self.autopilot is not None:
+            if self._rudder_index is None or not available[self._rudder_index]:
+                return "the rudder is not available"
+            return ""
+        geometry = self.allocator.geometry
+        columns = geometry.B[:, geometry.variables_of(available)]
+        held = [0, 1, 2] if mode is Mode.AUTO_POSITION else [2]
+        scale = self.allocator.capability_scale[held]
+        # rank of the held DOFs' rows, each scaled by the fleet's capability in it (N and N·m are not comparable)
+        rows = columns[held] / scale[:, None]
+        if np.linalg.matrix_rank(rows, tol=1e-6) < len(held):
+            names = ", ".join(spec.name for spec, ok in zip(self.thrusters, available.tolist(), strict=True) if ok)
+            dofs = "surge, sway and yaw" if mode is Mode.AUTO_POSITION else "yaw"
+            return f"the available thrusters ({names}) cannot produce {dofs}"
+        return ""
+
+    def _clear_insufficient(self, t_s: float) -> None:
+        """Clear ``thrusters.insufficient`` once the thrusters available could hold the refused mode again."""
+        mode = self._insufficient_for
+        if mode is None:
+            return
+        available = self.monitor.available
+        verdict = self._thrust_verdicts.get((available.tobytes(), mode))
+        if verdict is None:
+            verdict = self._judge_thrusters(available, mode)
+        if not verdict:
+            self.alarms.clear(t_s, "thrusters.insufficient")
+            self._insufficient_for = None
 
     def _supervise(self, controller: MracController, t_s: float) -> None:
         """``control.adaptation``: an MRAC estimate on its projection bound suspends the adaptation.
