@@ -31,7 +31,7 @@ from interfaces.zenoh.config import ZenohConfig
 
 PROTOCOLS = ("nmea0183", "nmea2000", "mavlink")
 MODES = ("standby", "auto_heading", "auto_position")
-FALLBACKS = ("hold_heading", "zero_surge_sway", "standby")
+FALLBACKS = ("dead_reckoning", "hold_heading", "zero_surge_sway", "standby")
 VESSEL_ID_PATTERN = re.compile(r"^[A-Za-z0-9_\-]{1,64}$")
 
 
@@ -88,12 +88,22 @@ class ControlSettings:
 
 @dataclass(frozen=True)
 class FallbackSettings:
-    """What the loop does when references are lost (issue 8 §5, §7)."""
+    """What the loop does when references are lost (issue 8 §5, §7; defaults justified in docs/fault-handling.md).
+
+    While no reference of a kind is in use the estimator dead-reckons it on the model (alarms
+    ``position.dead_reckoning`` / ``heading.dead_reckoning`` at once). After ``dead_reckoning_limit_s`` /
+    ``heading_loss_limit_s`` the configured fall-back: ``dead_reckoning`` (the default: keep holding on the
+    model, the alarm raised again as critical — the operator decides; thrust is never cut because a sensor
+    froze), ``hold_heading`` / ``zero_surge_sway`` (``auto_heading``: no surge and sway force) or ``standby``
+    (zero thrust). A fall-back that lasted less than ``restore_within_s`` is undone when the references are
+    back (the mode it fell back from is entered again, bumplessly, with an event); after that the operator
+    decides."""
 
     dead_reckoning_limit_s: float = 60.0
-    position_loss: str = "hold_heading"
-    heading_loss_limit_s: float = 5.0
-    heading_loss: str = "standby"
+    position_loss: str = "dead_reckoning"
+    heading_loss_limit_s: float = 60.0
+    heading_loss: str = "dead_reckoning"
+    restore_within_s: float = 300.0
 
 
 @dataclass(frozen=True)
@@ -467,9 +477,11 @@ def _parse(mapping: object, text: str, file: str | None) -> DaemonConfig:
     fb = root.section("fallback")
     fallback = FallbackSettings(
         dead_reckoning_limit_s=fb.number("dead_reckoning_limit_s", 60.0, minimum=0.0),
-        position_loss=fb.string("position_loss", "hold_heading", choices=FALLBACKS),
-        heading_loss_limit_s=fb.number("heading_loss_limit_s", 5.0, minimum=0.0),
-        heading_loss=fb.string("heading_loss", "standby", choices=("standby", "zero_surge_sway")),
+        position_loss=fb.string("position_loss", "dead_reckoning", choices=FALLBACKS),
+        heading_loss_limit_s=fb.number("heading_loss_limit_s", 60.0, minimum=0.0),
+        heading_loss=fb.string("heading_loss", "dead_reckoning", choices=("dead_reckoning", "standby",
+                                                                          "zero_surge_sway")),
+        restore_within_s=fb.number("restore_within_s", 300.0, minimum=0.0),
     )
     fb.finish()
 

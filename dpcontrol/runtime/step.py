@@ -223,6 +223,8 @@ class DpController:
         self._thrust_verdicts: dict[tuple[bytes, Mode], str] = {}
         self._insufficient_for: Mode | None = None
         self._heading_lost_alarm = False
+        # the mode a fall-back left and when (None: no fall-back to undo; see _restore)
+        self._fell_back: tuple[Mode, float] | None = None
         # every request's outcome, newest last: the status lists the last second's (several in one cycle each
         # get their own answer) and the last (a sender finds its seq there)
         self.recent_requests: deque[RequestOutcome] = deque(maxlen=RECENT_REQUESTS)
@@ -263,6 +265,7 @@ class DpController:
                         taken[self._mode_request][2].append(
                             f"mode {request.mode} requested after it in the same cycle (seq {request.seq})")
                     self._mode_request = len(taken)
+                    self._fell_back = None  # the operator decides: no automatic return
             if request.reset_thruster is not None:
                 self._reset_thruster(request.reset_thruster, refusals, notes)
             out.rejected_requests.extend(refusals)
@@ -546,23 +549,42 @@ class DpController:
             self._dead_reckoning_alarm = True
         elif self._dead_reckoning_alarm:
             self.alarms.clear(t_s, "position.dead_reckoning")
+            self.alarms.clear(t_s, "position.dead_reckoning_limit")
             self._dead_reckoning_alarm = False
         heading_lost = self._estimator_ready and not hub.heading_available
         if heading_lost:
             self.alarms.raise_(t_s, "heading.lost", Severity.ALARM,
                                f"no heading reference for {hub.heading_lost_s:.1f} s")
             self._heading_lost_alarm = True
+            if self.mode is not Mode.STANDBY:
+                self.alarms.raise_(t_s, "heading.dead_reckoning", Severity.ALARM,
+                                   f"no heading reference: heading dead-reckoned for {hub.heading_lost_s:.1f} s")
         elif self._heading_lost_alarm:
             self.alarms.clear(t_s, "heading.lost")
+            self.alarms.clear(t_s, "heading.dead_reckoning")
+            self.alarms.clear(t_s, "heading.dead_reckoning_limit")
             self._heading_lost_alarm = False
         if self.mode is not Mode.STANDBY:
             if heading_lost and hub.heading_lost_s >= fb.heading_loss_limit_s:
-                wanted = Mode.STANDBY if fb.heading_loss == "standby" else Mode.AUTO_HEADING
-                self._fallback(t_s, wanted, "heading references lost")
+                if fb.heading_loss == "dead_reckoning":
+                    self.alarms.raise_(t_s, "heading.dead_reckoning_limit", Severity.CRITICAL,
+                                       f"heading dead-reckoned beyond {fb.heading_loss_limit_s:g} s: still holding "
+                                       "on the model; the operator decides")
+                else:
+                    wanted = Mode.STANDBY if fb.heading_loss == "standby" else Mode.AUTO_HEADING
+                    self._fallback(t_s, wanted, "heading references lost")
             elif self.mode is Mode.AUTO_POSITION and dead_reckoning and \
                     hub.position_lost_s >= fb.dead_reckoning_limit_s:
-                wanted = Mode.STANDBY if fb.position_loss == "standby" else Mode.AUTO_HEADING
-                self._fallback(t_s, wanted, "position references lost")
+                if fb.position_loss == "dead_reckoning":
+                    self.alarms.raise_(t_s, "position.dead_reckoning_limit", Severity.CRITICAL,
+                                       f"position dead-reckoned beyond {fb.dead_reckoning_limit_s:g} s: still "
+                                       "holding on the model; the operator decides")
+                else:
+                    wanted = Mode.STANDBY if fb.position_loss == "standby" else Mode.AUTO_HEADING
+                    self._fallback(t_s, wanted, "position references lost")
+        fell_back = self._fell_back
+        if fell_back is not None and wanted is self.mode and self._requested_mode is self.mode:
+            wanted = self._restore(t_s, hub, fell_back)
         if wanted is self.mode:
             return
         if wanted is not Mode.STANDBY:
@@ -600,7 +622,13 @@ class DpController:
                     self.setpoint_n[:] = estimate.eta_hat_n
             self._engaged_once = True
         out.mode_changes.append((self.mode.value, wanted.value, self._fallback_reason or "operator"))
-        if not self._fallback_reason:  # the operator took over again: the fall-back is history
+        if self._fallback_reason.startswith("restored") and self._fell_back is not None:
+            self._fell_back = None
+            self.alarms.clear(t_s, "mode.fallback")
+            text = f"{self._fallback_reason[len('restored: '):]}: {wanted.value} restored"
+            self.alarms.raise_(t_s, "mode.restored", Severity.INFO, text)
+            self.alarms.clear(t_s, "mode.restored")  # (an event in the record, not a standing alarm)
+        elif not self._fallback_reason:  # the operator took over again: the fall-back is history
             self.alarms.clear(t_s, "mode.fallback")
         self._fallback_reason = ""
         self.mode = wanted
@@ -677,6 +705,21 @@ class DpController:
         self._fallback_reason = f"fallback: {reason}"
         self.alarms.raise_(t_s, "mode.fallback", Severity.ALARM, f"{reason}: fell back to {mode.value}")
         self._requested_mode = mode
+        if self._fell_back is None:  # (the first fall-back's mode is the one to return to)
+            self._fell_back = (self.mode, t_s)
+
+    def _restore(self, t_s: float, hub: HubOutput, fell_back: tuple[Mode, float]) -> Mode:
+        """The mode to be in after a fall-back: the one fallen back from once its references are back, if the
+        fall-back has lasted less than ``fallback.restore_within_s`` (an event says so, ``mode.restored``);
+        after that the operator decides (and ``mode.fallback`` stays up)."""
+        mode, since = fell_back
+        if t_s - since > self.config.fallback.restore_within_s:
+            self._fell_back = None
+            return self.mode
+        if not (hub.heading_available and (hub.position_available or mode is not Mode.AUTO_POSITION)):
+            return self.mode
+        self._fallback_reason = f"restored: references back after {t_s - since:.1f} s of fall-back"
+        return mode
 
     def _capability_alarm(self, t_s: float) -> None:
         """``thrusters.capability``: the allocator has left part of the demand unmet for

@@ -41,7 +41,7 @@ VALID: dict[str, Any] = {
                 {"name": "gyro1", "kind": "heading", "transport": "can0", "rate_hz": 10, "source_address": 7,
                  "sigma_deg": 0.1}],
     "fallback": {"dead_reckoning_limit_s": 60, "position_loss": "hold_heading", "heading_loss_limit_s": 5,
-                 "heading_loss": "standby"},
+                 "heading_loss": "standby", "restore_within_s": 300},
     "thruster_monitor": {"feedback_timeout_s": 2, "mismatch_fraction": 0.25, "mismatch_floor_fraction": 0.05,
                          "mismatch_persist_s": 5,
                          "shortfall_fraction": 0.1, "shortfall_persist_s": 10},
