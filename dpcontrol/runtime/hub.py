@@ -426,6 +426,11 @@ class SensorHub:
             track.rejected_samples += 1
             track.detail = f"identical values for {t_s - frozen_since:.1f} s"
             return
+        if frozen_since is not None:
+            # A value repeated exactly is no new measurement: not used, so that a reference that froze does not
+            # hold the estimate still for the freeze window (its bias states learn the vessel's true motion as a
+            # force otherwise, and the dead reckoning that follows drifts). It is declared frozen after the window.
+            return
         last_accepted = track.last_accepted_t_s
         # Prediction test against the wave filter (total motion, LF + WF).
         if predicted is not None and variance is not None:
