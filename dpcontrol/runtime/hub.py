@@ -20,6 +20,10 @@ applied to every position and heading sensor:
 * **re-estimation**: when every live reference of a kind has failed the prediction test for
   ``reject_persist_s`` and none had a sample accepted in that time, it is the estimate that is wrong
   (long dead reckoning): the references are trusted again and the caller re-initialises the estimator.
+  A *lone* reference of its kind (nothing to confirm it) is trusted so only after
+  ``single_reference_accept_s`` (alarm ``<kind>.reference_rejected`` meanwhile: the loop dead-reckons), or
+  at once when the operator accepts it (:meth:`SensorHub.accept_reference`);
+* **repeats**: a value repeated exactly is no new sample (not used; *frozen* after the window);
 
 Fusion is the inverse-variance weighted mean of the healthy references (latest samples, moved to
 the present with the estimated LF velocity). Bumpless, so that the estimator — and so the thrust —
@@ -117,6 +121,7 @@ class HubConfig:
     jump_min_m: float = 4.0
     heading_jump_min_rad: float = math.radians(5.0)
     reject_persist_s: float = 10.0
+    single_reference_accept_s: float = 180.0
     variance_time_constant_s: float = 20.0
     variance_alarm_factor: float = 3.0
     median_limit_m: float = 3.0
@@ -281,6 +286,8 @@ class SensorHub:
         self.unknown_sources = 0
         self._disagree = {"position": False, "heading": False}
         self._rejecting = False  # some reference has a prediction-test failure pending (see _all_rejecting)
+        self._accept_requested: set[str] = set()  # references the operator accepted (accept_reference)
+        self._lone_alarms: set[str] = set()  # <kind>.reference_rejected raised (see _lone_accepted)
         self._freeze_limit_s = config.freeze_window_s - 1e-9
         self._decay_dt = -1.0  # the period the bumpless offsets' decay factor was computed for [s]
         self._decay = 1.0
@@ -342,9 +349,15 @@ class SensorHub:
         if self._rejecting:  # (nothing to search for otherwise: the usual case)
             out.position_reset = self._all_rejecting(self._position, t_s)
             out.heading_reset = self._all_rejecting(self._heading, t_s)
-            self._rejecting = any(t.rejecting_since_t_s is not None for t in self._all)
+            self._rejecting = any(t.rejecting_since_t_s is not None for t in self._all) or bool(self._accept_requested)
         else:
             out.position_reset = out.heading_reset = False
+        if self._lone_alarms:  # a lone reference agrees again (or went away): the alarm clears
+            for code, tracks_of_kind in (("position.reference_rejected", self._position),
+                                         ("heading.reference_rejected", self._heading)):
+                if code in self._lone_alarms and all(t.rejecting_since_t_s is None for t in tracks_of_kind):
+                    self._lone_alarms.discard(code)
+                    self.alarms.clear(t_s, code)
         if out.position_reset:  # no bumpless fade towards a wrong estimate
             self._position_offset = [0.0, 0.0]
             self._position_used = []
@@ -508,11 +521,20 @@ class SensorHub:
         persist = self.config.reject_persist_s
         live = [t for t in tracks if t.last_t_s is not None and not t.disconnected and
                 t_s - t.last_t_s <= t.stale_s and t.state is not SensorState.FROZEN]
-        if not live or any(t.rejecting_since_t_s is None or t_s - t.rejecting_since_t_s < persist for t in live):
-            return False
-        if any(t.last_accepted_t_s is not None and t_s - t.last_accepted_t_s < persist for t in tracks):
-            return False
+        accepted = [t for t in live if t.name in self._accept_requested and t.rejecting_since_t_s is not None]
+        why = "all references disagreed with the estimate; estimator re-initialised on them"
+        if accepted:  # the operator's word (accept_reference): at once
+            live = accepted
+            why = f"operator accepted {', '.join(t.name for t in accepted)}; estimator re-initialised on it"
+        else:
+            if not live or any(t.rejecting_since_t_s is None or t_s - t.rejecting_since_t_s < persist for t in live):
+                return False
+            if any(t.last_accepted_t_s is not None and t_s - t.last_accepted_t_s < persist for t in tracks):
+                return False
+            if len(live) == 1 and not self._lone_accepted(live[0], t_s):
+                return False
         for track in live:
+            self._accept_requested.discard(track.name)
             track.rejecting_since_t_s = None
             track.residual_variance = None
             track.variance_samples = 0
@@ -520,8 +542,42 @@ class SensorHub:
             track.accepted_value = track.value
             track.last_accepted_t_s = track.last_t_s
             track.fresh = True
-        self.alarms.raise_(t_s, "estimator.reset", Severity.ALARM,
-                           "all references disagreed with the estimate; estimator re-initialised on them")
+        self.alarms.raise_(t_s, "estimator.reset", Severity.ALARM, why)
+        code = "heading.reference_rejected" if live[0].heading else "position.reference_rejected"
+        if code in self._lone_alarms:
+            self._lone_alarms.discard(code)
+            self.alarms.clear(t_s, code)
+        return True
+
+    def _lone_accepted(self, track: _SensorTrack, t_s: float) -> bool:
+        """A lone reference of its kind failing the prediction test: nothing confirms it, so it is not taken for
+        the truth before ``single_reference_accept_s`` (a jump or a drift of that receiver would otherwise be
+        followed after ``reject_persist_s``). Meanwhile the loop dead-reckons and ``<kind>.reference_rejected``
+        says so; after that time it is accepted (the estimate, not the reference, is taken to be wrong)."""
+        since = track.rejecting_since_t_s
+        assert since is not None
+        accept_s = self.config.single_reference_accept_s
+        if t_s - since >= accept_s:
+            return True
+        kind = "heading" if track.heading else "position"
+        code = f"{kind}.reference_rejected"
+        if code not in self._lone_alarms:
+            self._lone_alarms.add(code)
+            self.alarms.raise_(t_s, code, Severity.ALARM,
+                               f"{track.name}, the only {kind} reference, disagrees with the estimate ({track.detail}): "
+                               f"rejected, dead reckoning; taken as the truth after {accept_s:g} s or when the "
+                               "operator accepts it")
+        return False
+
+    def accept_reference(self, name: str) -> bool:
+        """The operator accepts reference ``name`` as the truth: when it is failing the prediction test, the
+        estimator is re-initialised on it at the next update (:attr:`HubOutput.position_reset` /
+        ``heading_reset``). Returns whether such a reference exists."""
+        track = self._tracks.get(name)
+        if track is None:
+            return False
+        self._accept_requested.add(name)
+        self._rejecting = True  # (the search for a reset runs at the next update)
         return True
 
     # ------------------------------------------------------------------ states and voting

@@ -241,6 +241,12 @@ class DpController:
         """Ask for a mode (applied at the next step, if the conditions allow)."""
         self._requested_mode = Mode(mode)
 
+    def accept_reference(self, name: str) -> bool:
+        """The operator accepts reference ``name`` as the truth (:meth:`SensorHub.accept_reference`): a lone
+        reference the prediction test rejects re-initialises the estimator on it at the next step, rather than
+        after ``hub.single_reference_accept_s``. Returns whether the reference exists."""
+        return self.hub.accept_reference(name)
+
     def _apply_requests(self, t_s: float, requests: Iterable[SetpointRequest]) -> None:
         """Apply this step's requests in their order of arrival, each answered on its own (:meth:`_report_requests`):
         a later set-point or mode replaces an earlier one of the same step, and that one's answer says so."""

@@ -6,9 +6,11 @@ campaign (``benchmarks/failsafe_campaign.py``). A case is a plain mapping (:func
 scenario mapping of the ``sim-plant`` scenario format), so that a campaign engine can take the same cases as a
 spec later: vessel, sea, fault kind, start, duration, seed.
 
-Vessels: the supply vessel (full scale) and CyberShip II (a 1:70 model, seed 000). The CyberShip II sea, current
-and bounds are the full-scale ones Froude-scaled (length 1/70, speed 1/√70, time 1/√70); the fault durations and
-start times are model-time seconds, as given (a 40 s freeze on the model is 5.5 min at full scale: harsher).
+Vessels: the supply vessel (full scale) and CyberShip II (a 1:70 model, seed 000). A case is stated at full
+scale; on CyberShip II it is Froude-scaled (length 1/70, speed and time 1/√70): the 3 m bound is 43 mm, a 10 m
+jump 143 mm, a 40 s freeze 4.8 s of model time — the same event for a vessel 70 times smaller, whose dynamics
+run √70 times faster (a 40 s freeze on the model would be 5.5 min at full scale). ``Case.duration_scale``
+overrides it (1.0: model time as given). The heading bound is not scaled (angles are not).
 """
 
 from __future__ import annotations
@@ -39,7 +41,7 @@ VESSELS: dict[str, dict[str, Any]] = {
         "sea": {"hs_m": 1.0, "omega_peak_rad_s": 0.79},
         "current_mps": 0.15, "wind_mps": 6.0,
         "gnss": {"rate_hz": 5, "noise_m": 0.3}, "gyro": {"rate_hz": 10, "noise_deg": 0.05},
-        "position_bound_m": 3.0, "heading_bound_deg": 3.0, "jump_m": 10.0,
+        "position_bound_m": 3.0, "heading_bound_deg": 3.0, "jump_m": 10.0, "time_scale": 1.0,
     },
     "cybership2": {
         "datum": {"lat_deg": 63.4305, "lon_deg": 10.3951},
@@ -47,11 +49,15 @@ VESSELS: dict[str, dict[str, Any]] = {
                                      "position_noise_std_m": 0.01, "heading_noise_std_rad": 1.0e-4,
                                      "wf_position_std_m": 0.3},
                        "control": {"kind": "pid"},
+                       # the hub's distances Froude-scaled (length 1/70): the 4 m jump floor and 3 m median limit
+                       # of a ship are 57 mm and 43 mm on the model
+                       "hub": {"jump_min_m": 4.0 / SCALE_CS2, "median_limit_m": 3.0 / SCALE_CS2},
                        "deviation": {"position_warning_m": 0.2, "position_alarm_m": 0.3}},
         "sea": {"hs_m": 0.04, "omega_peak_rad_s": 1.2},
         "current_mps": 0.03, "wind_mps": 0.0,
         "gnss": {"rate_hz": 10, "noise_m": 0.01}, "gyro": {"rate_hz": 10, "noise_deg": 0.0057},
-        "position_bound_m": 3.0 / SCALE_CS2 * 10.0, "heading_bound_deg": 3.0, "jump_m": 10.0 / SCALE_CS2 * 10.0,
+        "position_bound_m": 3.0 / SCALE_CS2, "heading_bound_deg": 3.0, "jump_m": 10.0 / SCALE_CS2,
+        "time_scale": 1.0 / math.sqrt(SCALE_CS2),
     },
 }
 
@@ -71,16 +77,24 @@ class Case:
     hs_factor: float = 1.0
     current_direction_deg: float = 210.0
     after_s: float = 120.0  # run on after the fault ends [s]
+    duration_scale: float | None = None  # fault duration factor; None: the vessel's Froude time scale
+
+    @property
+    def fault_duration_s(self) -> float:
+        """The injected fault's duration on this vessel [s] (:attr:`duration_s` × the time scale)."""
+        scale = VESSELS[self.vessel]["time_scale"] if self.duration_scale is None else self.duration_scale
+        return self.duration_s * scale
 
     def scenario(self) -> dict[str, Any]:
         """The scenario mapping (``sim-plant`` scenario format) of this case."""
         v = VESSELS[self.vessel]
-        fault: dict[str, Any] = {"t_s": self.start_s, "kind": self.fault, "duration_s": self.duration_s,
+        duration = self.fault_duration_s
+        fault: dict[str, Any] = {"t_s": self.start_s, "kind": self.fault, "duration_s": duration,
                                  "sensor": "gyro1" if self.fault.startswith("gyro") else "gnss1"}
         if self.fault == "gnss_jump":
             fault.update(offset_m=v["jump_m"], direction_deg=45.0)
         elif self.fault == "gnss_drift":
-            fault.update(rate_mps=v["jump_m"] / 60.0, direction_deg=45.0)
+            fault.update(rate_mps=v["jump_m"] / duration, direction_deg=45.0)
         elif self.fault == "gnss_noise":
             fault.update(factor=10.0)
         elif self.fault == "gyro_offset":
@@ -90,7 +104,7 @@ class Case:
         sea = v["sea"]
         scenario: dict[str, Any] = {
             "name": f"failsafe-{self.vessel}-{self.fault}-{self.seed}",
-            "vessel": self.vessel, "duration_s": self.start_s + self.duration_s + self.after_s, "seed": self.seed,
+            "vessel": self.vessel, "duration_s": self.start_s + duration + self.after_s, "seed": self.seed,
             "datum": v["datum"], "controller": v["controller"],
             "sea_states": [{"t_s": 0, "spectrum": "jonswap", "hs_m": sea["hs_m"] * self.hs_factor,
                             "omega_peak_rad_s": sea["omega_peak_rad_s"], "gamma": 3.3,
@@ -137,7 +151,7 @@ def run_case(case: Case, settled_s: float = 60.0) -> tuple[ProbedRun, Outcome]:
     engaged = [c for c in changes if c[2] == "auto_position"]
     first_engaged = engaged[0][0] if engaged else math.inf
     left = [c for c in changes if c[0] > first_engaged and c[1] == "auto_position"]
-    end = case.start_s + case.duration_s
+    end = case.start_s + case.fault_duration_s
     final_mode = changes[-1][2] if changes else "standby"
     back = 0.0
     if left:
