@@ -564,7 +564,8 @@ class SensorHub:
         if code not in self._lone_alarms:
             self._lone_alarms.add(code)
             self.alarms.raise_(t_s, code, Severity.ALARM,
-                               f"{track.name}, the only {kind} reference, disagrees with the estimate ({track.detail}): "
+                               f"{track.name}, the only {kind} reference, disagrees with the estimate "
+                               f"({track.detail}): "
                                f"rejected, dead reckoning; taken as the truth after {accept_s:g} s or when the "
                                "operator accepts it")
         return False

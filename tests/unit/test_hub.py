@@ -131,7 +131,7 @@ def test_a_lone_reference_that_jumps_is_not_taken_for_the_truth_before_its_accep
     for _ in range(300):
         scene.step()
         if scene.t < 1.0 + 20.0 - 1e-9:
-            assert not hub._out.position_reset and not hub._out.position_available or scene.t < 1.0 + 6 * DT
+            assert (not hub._out.position_reset and not hub._out.position_available) or scene.t < 1.0 + 6 * DT
         if scene.t > 1.0 + 3.0 + 2 * DT and reset_at is None and not hub._out.position_reset:
             assert alarms.is_active("position.reference_rejected")
         if hub._out.position_reset and reset_at is None:
