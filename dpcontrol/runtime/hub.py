@@ -122,6 +122,8 @@ class HubConfig:
     heading_jump_min_rad: float = math.radians(5.0)
     reject_persist_s: float = 10.0
     single_reference_accept_s: float = 180.0
+    dead_reckoning_drift_mps: float = 0.02
+    dead_reckoning_drift_radps: float = math.radians(0.02)
     variance_time_constant_s: float = 20.0
     variance_alarm_factor: float = 3.0
     median_limit_m: float = 3.0
@@ -325,6 +327,9 @@ class SensorHub:
             self._decay = math.exp(-dt / self.config.switch_blend_s) if dt > 0.0 else 1.0
         for track in self._all:
             track.fresh = False
+        if predicted_variance is not None and \
+                (self._position_lost_since is not None or self._heading_lost_since is not None):
+            predicted_variance = self._dead_reckoning_variance(t_s, predicted_variance)
         tracks = self._tracks
         for measurement in measurements:
             track = tracks.get(measurement.source)
@@ -385,6 +390,27 @@ class SensorHub:
         self._availability(t_s)
         return out
 
+    def _dead_reckoning_variance(self, t_s: float, variance: Sequence[float]) -> tuple[float, float, float]:
+        """The prediction's variance grown while a kind is dead-reckoned: + (drift × time lost)² [m², rad²].
+
+        The wave filter's steady-state gains carry the variance of a filter that is measured; dead reckoning
+        on the model, its error grows (an unmodelled change of current or wind, a bias not quite learnt) at
+        ``dead_reckoning_drift_mps`` / ``_radps`` (1σ). A reference that comes back consistent with the
+        dead-reckoned prediction within that grown uncertainty is taken back (blended in from the prediction,
+        see the module docstring) rather than rejected and, later, re-initialised on; a lone one that jumped
+        further than the growth allows stays rejected (``single_reference_accept_s``).
+        """
+        cfg = self.config
+        v0, v1, v2 = variance[0], variance[1], variance[2]
+        if self._position_lost_since is not None:
+            grown = cfg.dead_reckoning_drift_mps * (t_s - self._position_lost_since)
+            v0 += grown * grown
+            v1 += grown * grown
+        if self._heading_lost_since is not None:
+            grown = cfg.dead_reckoning_drift_radps * (t_s - self._heading_lost_since)
+            v2 += grown * grown
+        return v0, v1, v2
+
     def _nominal_sigma(self, track: _SensorTrack) -> float:
         """1-σ the sensor claims: recent GST statistics, else the configured noise."""
         gst = track.gst_sigma  # (gst_t_s is set with it)
@@ -443,6 +469,7 @@ class SensorHub:
             # A value repeated exactly is no new measurement: not used, so that a reference that froze does not
             # hold the estimate still for the freeze window (its bias states learn the vessel's true motion as a
             # force otherwise, and the dead reckoning that follows drifts). It is declared frozen after the window.
+            track.rejected_samples += 1
             return
         last_accepted = track.last_accepted_t_s
         # Prediction test against the wave filter (total motion, LF + WF).

@@ -78,12 +78,16 @@ class Case:
     current_direction_deg: float = 210.0
     after_s: float = 120.0  # run on after the fault ends [s]
     duration_scale: float | None = None  # fault duration factor; None: the vessel's Froude time scale
+    controller: dict[str, Any] | None = None  # controller sections merged over the vessel's (e.g. {"hub": {...}})
 
     @property
     def fault_duration_s(self) -> float:
         """The injected fault's duration on this vessel [s] (:attr:`duration_s` × the time scale)."""
         scale = VESSELS[self.vessel]["time_scale"] if self.duration_scale is None else self.duration_scale
         return self.duration_s * scale
+
+    def _controller(self, base: dict[str, Any]) -> dict[str, Any]:
+        return base if not self.controller else _merged(base, self.controller)
 
     def scenario(self) -> dict[str, Any]:
         """The scenario mapping (``sim-plant`` scenario format) of this case."""
@@ -105,7 +109,7 @@ class Case:
         scenario: dict[str, Any] = {
             "name": f"failsafe-{self.vessel}-{self.fault}-{self.seed}",
             "vessel": self.vessel, "duration_s": self.start_s + duration + self.after_s, "seed": self.seed,
-            "datum": v["datum"], "controller": v["controller"],
+            "datum": v["datum"], "controller": self._controller(v["controller"]),
             "sea_states": [{"t_s": 0, "spectrum": "jonswap", "hs_m": sea["hs_m"] * self.hs_factor,
                             "omega_peak_rad_s": sea["omega_peak_rad_s"], "gamma": 3.3,
                             "direction_deg": self.sea_direction_deg}],
@@ -118,6 +122,14 @@ class Case:
         if v["wind_mps"]:
             scenario["wind"] = {"speed_mps": v["wind_mps"], "direction_deg": self.sea_direction_deg}
         return scenario
+
+
+def _merged(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
+    """``base`` with the sections of ``over`` merged in (one level deep)."""
+    out = dict(base)
+    for key, value in over.items():
+        out[key] = {**out[key], **value} if isinstance(value, dict) and isinstance(out.get(key), dict) else value
+    return out
 
 
 @dataclass(frozen=True)
