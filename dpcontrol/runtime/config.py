@@ -134,6 +134,8 @@ class DeviationSettings:
     heading_warning_rad: float = math.radians(3.0)
     heading_alarm_rad: float = math.radians(5.0)
     persist_s: float = 1.0
+    drift_off_horizon_s: float = 30.0  # drift-off alarm: the alarm limit reached within this at the present trend
+    drift_off_persist_s: float = 3.0  # ... growing at a growing rate for this long (0 horizon: no drift-off alarm)
 
 
 @dataclass(frozen=True)
@@ -544,6 +546,8 @@ def _parse_deviation(section: Section) -> DeviationSettings:
         heading_warning_rad=math.radians(limits["heading_warning_deg"]),
         heading_alarm_rad=math.radians(limits["heading_alarm_deg"]),
         persist_s=section.number("persist_s", 1.0, minimum=0.0),
+        drift_off_horizon_s=section.number("drift_off_horizon_s", 30.0, minimum=0.0),
+        drift_off_persist_s=section.number("drift_off_persist_s", 3.0, minimum=0.0),
     )
     section.finish()
     return settings
