@@ -23,7 +23,8 @@ applied to every position and heading sensor:
   A *lone* reference of its kind (nothing to confirm it) is trusted so only after
   ``single_reference_accept_s`` (alarm ``<kind>.reference_rejected`` meanwhile: the loop dead-reckons), or
   at once when the operator accepts it (:meth:`SensorHub.accept_reference`);
-* **repeats**: a value repeated exactly is no new sample (not used; *frozen* after the window);
+* **repeats**: a value repeated exactly is no new sample (the reference stays alive, the estimator is not
+  corrected with it; *frozen* after the window);
 
 Fusion is the inverse-variance weighted mean of the healthy references (latest samples, moved to
 the present with the estimated LF velocity). Bumpless, so that the estimator — and so the thrust —
@@ -465,12 +466,6 @@ class SensorHub:
             track.rejected_samples += 1
             track.detail = f"identical values for {t_s - frozen_since:.1f} s"
             return
-        if frozen_since is not None:
-            # A value repeated exactly is no new measurement: not used, so that a reference that froze does not
-            # hold the estimate still for the freeze window (its bias states learn the vessel's true motion as a
-            # force otherwise, and the dead reckoning that follows drifts). It is declared frozen after the window.
-            track.rejected_samples += 1
-            return
         last_accepted = track.last_accepted_t_s
         # Prediction test against the wave filter (total motion, LF + WF).
         if predicted is not None and variance is not None:
@@ -516,6 +511,14 @@ class SensorHub:
                 track.residual_variance = own if measured is None else (1.0 - alpha) * measured + alpha * own
         else:
             track.previous_residual = track.previous_residual2 = None
+        if frozen_since is not None:
+            # A value repeated exactly is no new measurement: the reference stays alive (a quantised heading
+            # repeats now and then) but the estimator is not corrected with it, so that a reference that froze
+            # does not hold the estimate still for the freeze window (its bias states learn the vessel's true
+            # motion as a force otherwise, and the dead reckoning that follows drifts). Frozen after the window.
+            track.last_accepted_t_s = t_s
+            track.detail = ""
+            return
         # Low-pass the accepted values for the median test (so noise does not flip it on and off) and for
         # the level of each reference in a bumpless switch. After a gap it restarts as a running mean
         # (weight 1/n until that is below the low-pass weight): one raw sample is no level.

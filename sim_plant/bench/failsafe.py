@@ -49,9 +49,13 @@ VESSELS: dict[str, dict[str, Any]] = {
                                      "position_noise_std_m": 0.01, "heading_noise_std_rad": 1.0e-4,
                                      "wf_position_std_m": 0.3},
                        "control": {"kind": "pid"},
-                       # the hub's distances Froude-scaled (length 1/70): the 4 m jump floor and 3 m median limit
-                       # of a ship are 57 mm and 43 mm on the model
-                       "hub": {"jump_min_m": 4.0 / SCALE_CS2, "median_limit_m": 3.0 / SCALE_CS2},
+                       # the hub's distances and detection times Froude-scaled (length 1/70, time 1/√70): the
+                       # 4 m jump floor and 3 m median limit of a ship are 57 mm and 43 mm on the model, its 5 s
+                       # freeze window 0.6 s, its 10 s / 180 s rejection times 1.2 s / 21.5 s
+                       "hub": {"jump_min_m": 4.0 / SCALE_CS2, "median_limit_m": 3.0 / SCALE_CS2,
+                               "freeze_window_s": 5.0 / math.sqrt(SCALE_CS2),
+                               "reject_persist_s": 10.0 / math.sqrt(SCALE_CS2),
+                               "single_reference_accept_s": 180.0 / math.sqrt(SCALE_CS2)},
                        "deviation": {"position_warning_m": 0.2, "position_alarm_m": 0.3}},
         "sea": {"hs_m": 0.04, "omega_peak_rad_s": 1.2},
         "current_mps": 0.03, "wind_mps": 0.0,

@@ -156,8 +156,8 @@ def test_the_operator_accepts_a_lone_reference_at_once() -> None:
 
 
 def test_a_repeated_value_is_no_new_sample() -> None:
-    # a GNSS repeating its last fix: not used from the first repeat (dead reckoning after the stale time),
-    # declared frozen after the freeze window
+    # a GNSS repeating its last fix: no new measurement from the first repeat (the estimator predicts), the
+    # reference alive until it is declared frozen after the freeze window
     hub, alarms = _hub(freeze_window_s=5.0)
     scene = Scene(hub)
     scene.step(20)
@@ -166,10 +166,11 @@ def test_a_repeated_value_is_no_new_sample() -> None:
     assert hub._out.measured[0]  # (a new value)
     scene.step(1)
     assert not hub._out.measured[0]  # the same again
-    scene.step(6)
-    assert not hub._out.position_available and not alarms.is_active("sensor.gnss1.frozen")
-    scene.step(50)
-    assert alarms.is_active("sensor.gnss1.frozen")
+    scene.step(30)
+    assert hub._out.position_available and not hub._out.measured[0]
+    assert not alarms.is_active("sensor.gnss1.frozen")
+    scene.step(30)
+    assert alarms.is_active("sensor.gnss1.frozen") and not hub._out.position_available
 
 
 def test_median_test_isolates_a_drifting_reference_of_three() -> None:
