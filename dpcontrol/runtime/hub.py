@@ -469,15 +469,19 @@ class SensorHub:
         last_accepted = track.last_accepted_t_s
         # Prediction test against the wave filter (total motion, LF + WF).
         if predicted is not None and variance is not None:
+            # (judged as it would reach the estimator: with the offset the hub is fading out added — after a
+            # return from dead reckoning that offset holds the estimate at its prediction, and the raw samples
+            # differ from the prediction by it until it has faded)
             sigma = self._sigma(track)
             if heading:
-                r0 = ssa(v0 - predicted[2])
+                r0 = ssa(v0 + self._heading_offset - predicted[2])
                 r1 = 0.0
                 limit = max(cfg.heading_jump_min_rad, cfg.jump_sigma_factor * math.sqrt(variance[2] + sigma * sigma))
                 distance = abs(r0)
             else:
-                r0 = v0 - predicted[0]
-                r1 = v1 - predicted[1]
+                offset = self._position_offset
+                r0 = v0 + offset[0] - predicted[0]
+                r1 = v1 + offset[1] - predicted[1]
                 limit = max(cfg.jump_min_m,
                             cfg.jump_sigma_factor * math.sqrt(0.5 * (variance[0] + variance[1]) + sigma * sigma))
                 distance = math.hypot(r0, r1)

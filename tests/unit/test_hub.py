@@ -403,3 +403,33 @@ def test_a_slow_reference_is_moved_to_the_present_with_the_estimated_velocity() 
             assert out.position_available
             lags.append(math.hypot(out.y_n[0] - north, out.y_n[1] - east))
     assert max(lags) < 0.01  # [m] (a few mm of the geodetic round trip); without the propagation 0.9 × 1.12 m
+
+
+def test_a_reference_back_after_dead_reckoning_is_judged_against_a_grown_uncertainty() -> None:
+    """The GNSS is silent for 60 s and comes back 5 m from the dead-reckoned prediction: beyond the 4 m floor of
+    the prediction test with the filter's steady-state variance, within 5σ of the variance grown at 0.02 m/s
+    (σ 1.2 m after 60 s): taken back at once (blended in from the prediction), not rejected."""
+    hub, _ = _hub(dead_reckoning_drift_mps=0.02)
+    scene = Scene(hub)
+    scene.step(20)
+    scene.silent.add("gnss1")
+    scene.step(600)
+    assert not hub._out.position_available
+    scene.silent.discard("gnss1")
+    scene.position_error["gnss1"] = (5.0, 0.0)
+    scene.step(10)
+    assert hub._out.position_available and hub.state_of("gnss1") is SensorState.OK
+    assert hub._tracks["gnss1"].rejected_samples == 0
+    assert abs(hub._out.y_n[0]) < 1.0  # starts at the prediction (the origin), the 5 m faded in over switch_blend_s
+
+
+def test_without_the_growth_the_same_return_is_rejected() -> None:
+    hub, _ = _hub(dead_reckoning_drift_mps=1e-9)
+    scene = Scene(hub)
+    scene.step(20)
+    scene.silent.add("gnss1")
+    scene.step(600)
+    scene.silent.discard("gnss1")
+    scene.position_error["gnss1"] = (5.0, 0.0)
+    scene.step(10)
+    assert not hub._out.position_available and hub._tracks["gnss1"].rejected_samples > 0
