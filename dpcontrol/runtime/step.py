@@ -667,10 +667,12 @@ class DpController:
                 return "the rudder is not available"
             return ""
         geometry = self.allocator.geometry
-        columns = geometry.B[:, geometry.variables_of(available)]
+        variables = geometry.variables_of(available)
+        # the force of each available variable at its thruster's rating [N, N, N·m] ...
+        columns = geometry.B[:, variables] * geometry.scale_n[geometry.variable_thruster[variables]]
         held = [0, 1, 2] if mode is Mode.AUTO_POSITION else [2]
         scale = self.allocator.capability_scale[held]
-        # rank of the held DOFs' rows, each scaled by the fleet's capability in it (N and N·m are not comparable)
+        # ... and the rank of the held DOFs' rows, each over the fleet's capability in it (N and N·m compared)
         rows = columns[held] / scale[:, None]
         if np.linalg.matrix_rank(rows, tol=1e-6) < len(held):
             names = ", ".join(spec.name for spec, ok in zip(self.thrusters, available.tolist(), strict=True) if ok)

@@ -6,8 +6,11 @@ controller's own step with sensor samples and drive feedback, as the daemon runs
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
+import pytest
+import yaml
 
 from dpcontrol.runtime.alarms import Severity
 from dpcontrol.runtime.config import parse_config
@@ -18,6 +21,7 @@ from interfaces.messages import FixQuality, Heading, Measurement, PositionFix
 from interfaces.zenoh.schemas import SetpointRequest
 
 DT = 0.1
+ROOT = Path(__file__).resolve().parents[2]
 FRAME = LocalFrame(63.43, 10.39)
 
 
@@ -84,3 +88,14 @@ def test_a_tunnel_thruster_alone_may_hold_heading_but_not_position() -> None:
     t = _run(controller, t, 0.5, ready=only_bow, requests=[SetpointRequest(t_s=t, seq=2, mode="auto_heading")])
     assert controller.mode is Mode.AUTO_HEADING
     assert np.isfinite(controller.out.thrust_n).all()
+
+
+@pytest.mark.parametrize("example", sorted(p.stem for p in (ROOT / "deploy" / "config").glob("*.yaml")))
+def test_every_example_vessel_may_engage_with_all_its_thrusters(example: str) -> None:
+    config = yaml.safe_load((ROOT / "deploy" / "config" / f"{example}.yaml").read_text(encoding="utf-8"))
+    controller = DpController(parse_config(config))
+    everything = np.ones(len(controller.thrusters), dtype=bool)
+    modes = [Mode.AUTO_HEADING] if controller.autopilot is not None else [Mode.AUTO_POSITION, Mode.AUTO_HEADING]
+    for mode in modes:
+        assert controller._judge_thrusters(everything, mode) == ""
+    assert controller._judge_thrusters(np.zeros_like(everything), modes[0]) == "no thruster available"
