@@ -290,6 +290,7 @@ class SensorHub:
         self._disagree = {"position": False, "heading": False}
         self._rejecting = False  # some reference has a prediction-test failure pending (see _all_rejecting)
         self._accept_requested: set[str] = set()  # references the operator accepted (accept_reference)
+        self._base_variance: Sequence[float] | None = None  # this update's prediction variance before any growth
         self._lone_alarms: set[str] = set()  # <kind>.reference_rejected raised (see _lone_accepted)
         self._freeze_limit_s = config.freeze_window_s - 1e-9
         self._decay_dt = -1.0  # the period the bumpless offsets' decay factor was computed for [s]
@@ -328,6 +329,7 @@ class SensorHub:
             self._decay = math.exp(-dt / self.config.switch_blend_s) if dt > 0.0 else 1.0
         for track in self._all:
             track.fresh = False
+        self._base_variance = predicted_variance
         if predicted_variance is not None and \
                 (self._position_lost_since is not None or self._heading_lost_since is not None):
             predicted_variance = self._dead_reckoning_variance(t_s, predicted_variance)
@@ -467,6 +469,13 @@ class SensorHub:
             track.detail = f"identical values for {t_s - frozen_since:.1f} s"
             return
         last_accepted = track.last_accepted_t_s
+        if track.rejecting_since_t_s is not None and variance is not self._base_variance and previous is not None \
+                and _distance(value, previous, heading) <= (cfg.heading_jump_min_rad if heading else cfg.jump_min_m):
+            # A reference being rejected that has not stepped since: its jump persists. Judged against the
+            # filter's own variance, not the one grown by dead reckoning — that growth is the estimate's
+            # uncertainty about a reference that was *absent*, and would let a persisting jump in after a while.
+            # (One that steps back — the jump over — is judged against the grown variance, as a return.)
+            variance = self._base_variance
         # Prediction test against the wave filter (total motion, LF + WF).
         if predicted is not None and variance is not None:
             # (judged as it would reach the estimator: with the offset the hub is fading out added — after a

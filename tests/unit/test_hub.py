@@ -433,3 +433,15 @@ def test_without_the_growth_the_same_return_is_rejected() -> None:
     scene.position_error["gnss1"] = (5.0, 0.0)
     scene.step(10)
     assert not hub._out.position_available and hub._tracks["gnss1"].rejected_samples > 0
+
+
+def test_a_persisting_jump_is_not_let_in_by_the_dead_reckoning_growth() -> None:
+    """A lone GNSS jumps 8 m and stays there: rejected, the loop dead-reckons, the prediction's variance grows
+    (5σ passes 8 m after ~72 s). The receiver was never absent and has not stepped back: its jump persists and
+    it stays rejected (until single_reference_accept_s), where a receiver *returning* 8 m off would be taken."""
+    hub, _ = _hub(dead_reckoning_drift_mps=0.02, single_reference_accept_s=600.0)
+    scene = Scene(hub)
+    scene.step(20)
+    scene.position_error["gnss1"] = (8.0, 0.0)
+    scene.step(900)  # 90 s
+    assert not hub._out.position_available and hub.state_of("gnss1") is SensorState.REJECTED
