@@ -2,7 +2,7 @@
 
 Measures, per call of ``step()`` (correct + weights + blend + predict), on CyberShip II data:
 
-* ``mmae``: the batched bank, N = 8 models × 15 states (issue 3 target: p99 ≤ 150 µs; docs/design.md §6
+* ``mmae``: the batched bank, N = 8 models × 15 states (target: p99 ≤ 150 µs; docs/design.md §6
   budget for a well-written batched bank: about 12 µs);
 * ``mmae_loop``: the same bank written as a Python loop over 8 single filters (the docs/design.md §6
   comparison, about 130 µs), to show what batching buys;

@@ -224,13 +224,14 @@ class _Soak:
         # the thrust mismatch a healthy-drive model sees during each thruster fault
         dt = self.simulation.config.sample_time_s
         fraction = self.simulation.config.thruster_monitor.mismatch_fraction
+        floor_fraction = self.simulation.config.thruster_monitor.mismatch_floor_fraction
         for k, fault in self._thruster_faults:
             if fault.active(t_s):
                 i = self._index[fault.target]
                 health = controller.monitor._health[i]
                 feedback = health.last_feedback
                 rating = health.spec.max_thrust_n
-                limit = mismatch_limit_n(rating, health.expected_n, fraction)
+                limit = mismatch_limit_n(rating, health.expected_n, fraction, floor_fraction)
                 if feedback is not None and abs(feedback.thrust_n - health.expected_n) > limit:
                     self.mismatch_s[k] = self.mismatch_s.get(k, 0.0) + dt
                     self.mismatch_first.setdefault(k, t_s)

@@ -1,4 +1,4 @@
-"""Wave-filtering estimators of the numeric core (issue 3).
+"""Wave-filtering estimators of the numeric core.
 
 * :mod:`~dpcontrol.estimation.design_model` — the DP design model (seed 002 eqs. (30)–(39), seed 001
   eqs. (33)–(38)), one builder parameterised by ω0 and ζ;

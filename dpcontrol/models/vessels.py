@@ -167,7 +167,7 @@ CYBERSHIP2 = VesselData(
 #   M'' = [[1.1274, 0, 0], [0, 1.8902, −0.0744], [0, −0.0744, 0.1278]],
 #   D'' = [[0.0358, 0, 0], [0, 0.1183, −0.0124], [0, −0.0041, 0.0308]], m = 6.0·10⁶ kg.
 # Seed 001 uses "a typical 100 m DP supply vessel" in MCSim; this is the public stand-in.
-# Thrusters (issue 4: 2 tunnels + 2 azimuths): tunnel positions from the same model; azimuth
+# Thrusters (2 tunnels + 2 azimuths): tunnel positions from the same model; azimuth
 # positions and all force limits estimated for a DP2 PSV of this size (2 × 1.0 MW tunnels,
 # 2 × 2.2 MW azimuths); capability documented at the tuple.
 def _supply() -> VesselData:
@@ -228,7 +228,7 @@ SUPPLY = _supply()
 #   yaw inertia       Iz = m·(0.25 L)²;  yaw added inertia A66 = A22·L²/12 (uniform along the hull);
 #   linear damping    from time constants M_ii/D_ii: surge 1000 s ("c ≪ c_M", seed 003), sway 100 s,
 #                     yaw 80 s — typical for DP tankers (current force ≈ 0.5 MN at 1 m/s beam on).
-# Thrusters (issue 4: bow tunnel + azimuth + main propeller): DP2 shuttle tanker layout with two bow
+# Thrusters (bow tunnel + azimuth + main propeller): DP2 shuttle tanker layout with two bow
 # tunnels, a retractable bow azimuth, two stern tunnels and a CPP main propeller with rudder
 # (capability documented at the tuple).
 def _tanker(name: str, mass: float, draft: float, surge_added: float, description: str) -> VesselData:

@@ -31,7 +31,7 @@ from interfaces.zenoh.security import unprotected_endpoints
 
 PROTOCOLS = ("nmea0183", "nmea2000", "mavlink")
 MODES = ("standby", "auto_heading", "auto_position")
-FALLBACKS = ("hold_heading", "zero_surge_sway", "standby")
+FALLBACKS = ("dead_reckoning", "hold_heading", "zero_surge_sway", "standby")
 VESSEL_ID_PATTERN = re.compile(r"^[A-Za-z0-9_\-]{1,64}$")
 
 
@@ -91,20 +91,33 @@ class ControlSettings:
 
 @dataclass(frozen=True)
 class FallbackSettings:
-    """What the loop does when references are lost (issue 8 §5, §7)."""
+    """What the loop does when references are lost (defaults justified in docs/fault-handling.md).
+
+    While no reference of a kind is in use the estimator dead-reckons it on the model (alarms
+    ``position.dead_reckoning`` / ``heading.dead_reckoning`` at once). After ``dead_reckoning_limit_s`` /
+    ``heading_loss_limit_s`` the configured fall-back: ``dead_reckoning`` (the default: keep holding on the
+    model, the alarm raised again as critical — the operator decides; thrust is never cut because a sensor
+    froze), ``hold_heading`` / ``zero_surge_sway`` (``auto_heading``: no surge and sway force) or ``standby``
+    (zero thrust). A fall-back that lasted less than ``restore_within_s`` is undone when the references are
+    back (the mode it fell back from is entered again, bumplessly, with an event); after that the operator
+    decides."""
 
     dead_reckoning_limit_s: float = 60.0
-    position_loss: str = "hold_heading"
-    heading_loss_limit_s: float = 5.0
-    heading_loss: str = "standby"
+    position_loss: str = "dead_reckoning"
+    heading_loss_limit_s: float = 60.0
+    heading_loss: str = "dead_reckoning"
+    restore_within_s: float = 300.0
 
 
 @dataclass(frozen=True)
 class ThrusterMonitorSettings:
-    """Thruster fault detection from drive feedback (issue 8 §10)."""
+    """Thruster fault detection from drive feedback (docs/fault-handling.md)."""
 
     feedback_timeout_s: float = 2.0
     mismatch_fraction: float = 0.25
+    # absolute floor of the mismatch limit, a share of each drive's rating: a drive asked for (almost) nothing is
+    # never judged on noise (see dpcontrol.runtime.thrusters)
+    mismatch_floor_fraction: float = 0.05
     mismatch_persist_s: float = 5.0
     shortfall_fraction: float = 0.1
     shortfall_persist_s: float = 10.0
@@ -124,6 +137,8 @@ class DeviationSettings:
     heading_warning_rad: float = math.radians(3.0)
     heading_alarm_rad: float = math.radians(5.0)
     persist_s: float = 1.0
+    drift_off_horizon_s: float = 30.0  # drift-off alarm: the alarm limit reached within this at the present trend
+    drift_off_persist_s: float = 3.0  # ... growing at a growing rate for this long (0 horizon: no drift-off alarm)
 
 
 @dataclass(frozen=True)
@@ -151,7 +166,7 @@ class ConsequenceSettings:
 
 @dataclass(frozen=True)
 class StateSettings:
-    """Persisted estimator/controller state for a bumpless restart (issue 9 §4)."""
+    """Persisted estimator/controller state for a bumpless restart (docs/installation.md, restarts)."""
 
     path: str | None = None
     period_s: float = 1.0
@@ -492,9 +507,11 @@ def _parse(mapping: object, text: str, file: str | None) -> DaemonConfig:
     fb = root.section("fallback")
     fallback = FallbackSettings(
         dead_reckoning_limit_s=fb.number("dead_reckoning_limit_s", 60.0, minimum=0.0),
-        position_loss=fb.string("position_loss", "hold_heading", choices=FALLBACKS),
-        heading_loss_limit_s=fb.number("heading_loss_limit_s", 5.0, minimum=0.0),
-        heading_loss=fb.string("heading_loss", "standby", choices=("standby", "zero_surge_sway")),
+        position_loss=fb.string("position_loss", "dead_reckoning", choices=FALLBACKS),
+        heading_loss_limit_s=fb.number("heading_loss_limit_s", 60.0, minimum=0.0),
+        heading_loss=fb.string("heading_loss", "dead_reckoning", choices=("dead_reckoning", "standby",
+                                                                          "zero_surge_sway")),
+        restore_within_s=fb.number("restore_within_s", 300.0, minimum=0.0),
     )
     fb.finish()
 
@@ -502,6 +519,7 @@ def _parse(mapping: object, text: str, file: str | None) -> DaemonConfig:
     monitor = ThrusterMonitorSettings(
         feedback_timeout_s=tm.number("feedback_timeout_s", 2.0, minimum=0.0, exclusive_minimum=True),
         mismatch_fraction=tm.number("mismatch_fraction", 0.25, minimum=0.0, exclusive_minimum=True),
+        mismatch_floor_fraction=tm.number("mismatch_floor_fraction", 0.05, minimum=0.0, exclusive_minimum=True),
         mismatch_persist_s=tm.number("mismatch_persist_s", 5.0, minimum=0.0),
         shortfall_fraction=tm.number("shortfall_fraction", 0.1, minimum=0.0, exclusive_minimum=True),
         shortfall_persist_s=tm.number("shortfall_persist_s", 10.0, minimum=0.0),
@@ -574,6 +592,8 @@ def _parse_deviation(section: Section) -> DeviationSettings:
         heading_warning_rad=math.radians(limits["heading_warning_deg"]),
         heading_alarm_rad=math.radians(limits["heading_alarm_deg"]),
         persist_s=section.number("persist_s", 1.0, minimum=0.0),
+        drift_off_horizon_s=section.number("drift_off_horizon_s", 30.0, minimum=0.0),
+        drift_off_persist_s=section.number("drift_off_persist_s", 3.0, minimum=0.0),
     )
     section.finish()
     return settings

@@ -16,11 +16,23 @@ A limit exceeded for ``persist_s`` raises its alarm: ``position.deviation.warnin
 together above the alarm limit, so the log shows the escalation. An alarm clears once the deviation has been
 below :data:`CLEAR_FRACTION` of its limit for ``persist_s`` (a hysteresis band, so that a vessel riding at the
 limit does not flap). Pure: time comes in with each call.
+
+**Drift-off** (``position.drift_off``, ``heading.drift_off``, alarm): the deviation moves away from the reference
+at a growing rate and, at that rate and acceleration, would reach the alarm limit within ``drift_off_horizon_s``
+— the drift-off commercial systems warn of before the deviation limit: a vessel that has lost the means (or the
+knowledge) to hold position accelerates away under the unbalanced environmental force. The rate and its growth
+are judged from the deviation now and :data:`DRIFT_WINDOW_S` and twice that ago (d₀, d₁, d₂): increasing
+(d₀ < d₁ < d₂) and accelerating (d₂ − d₁ > d₁ − d₀), with ḋ = (d₂ − d₁)/W, d̈ = (d₂ − 2d₁ + d₀)/W² and
+d₂ + ḋ·H + ½·d̈·H² ≥ the alarm limit, for ``drift_off_persist_s``. A step of the deviation (a set-point change)
+is never increasing over both intervals; a steady creep does not accelerate. Cleared once the deviation has
+stopped growing (d₂ ≤ d₁) for ``persist_s``.
 """
 
 from __future__ import annotations
 
 import math
+from collections import deque
+from typing import Any
 
 import numpy as np
 
@@ -29,6 +41,36 @@ from dpcontrol.runtime.config import DeviationSettings
 
 #: An alarm clears below this share of its limit (hysteresis).
 CLEAR_FRACTION = 0.8
+DRIFT_WINDOW_S = 5.0  # the drift-off test's interval W [s]
+DRIFT_SAMPLE_S = 0.5  # the deviations it keeps are this far apart (≤ 2W/this of them: a short scan per step) [s]
+
+
+class _DriftOff:
+    """The drift-off judgement of one quantity (module docstring): the recent deviations and since when growing."""
+
+    __slots__ = ("code", "growing_since", "history", "raised", "still_since", "unit")
+
+    def __init__(self, code: str, unit: str) -> None:
+        self.code = code
+        self.unit = unit
+        self.history: deque[tuple[float, float]] = deque()  # (t_s, deviation), the last 2 W (and one before)
+        self.growing_since: float | None = None
+        self.still_since: float | None = None
+        self.raised = False
+
+    def reset(self) -> None:
+        self.history.clear()
+        self.growing_since = self.still_since = None
+
+    def at(self, t_s: float) -> float | None:
+        """The deviation at the latest sample at or before ``t_s`` (None: none that old)."""
+        found = None
+        for t, value in self.history:
+            if t > t_s + 1e-9:
+                break
+            found = value
+        return found
+
 
 _POSITION_MODES = frozenset({"auto_position"})
 _HEADING_MODES = frozenset({"auto_position", "auto_heading"})
@@ -74,6 +116,8 @@ class DeviationMonitor:
             for label, severity, limit in (("warning", Severity.WARNING, settings.heading_warning_rad),
                                            ("alarm", Severity.ALARM, settings.heading_alarm_rad)))
         self._any_raised = False
+        self._drift = {"position": _DriftOff("position.drift_off", "m"),
+                       "heading": _DriftOff("heading.drift_off", "deg")}
         #: the last deviations: horizontal distance [m] and heading, wrapped to [0, π] [rad] (None: not watched)
         self.position_m: float | None = None
         self.heading_rad: float | None = None
@@ -85,6 +129,8 @@ class DeviationMonitor:
             self.position_m = self.heading_rad = None
             if self._any_raised:
                 self._rest(t_s)
+            for drift in self._drift.values():
+                self._drift_release(t_s, drift)
             return
         # Python floats: a handful of scalars per step (numpy scalar arithmetic costs several times more)
         n_hat, e_hat, psi_hat = eta_hat_n.tolist()
@@ -93,15 +139,65 @@ class DeviationMonitor:
         self.heading_rad = heading
         for limit in self._heading:
             self._judge(t_s, limit, heading, math.degrees(heading))
+        settings = self.settings
+        if settings.drift_off_horizon_s > 0.0:
+            self._drift_off(t_s, self._drift["heading"], heading, settings.heading_alarm_rad, math.degrees)
         if mode in _POSITION_MODES:
             position = math.hypot(n_hat - n_d, e_hat - e_d)
             self.position_m = position
             for limit in self._position:
                 self._judge(t_s, limit, position, position)
+            if settings.drift_off_horizon_s > 0.0:
+                self._drift_off(t_s, self._drift["position"], position, settings.position_alarm_m, float)
         else:
             self.position_m = None
             for limit in self._position:
                 self._release(t_s, limit)
+            self._drift_release(t_s, self._drift["position"])
+
+    def _drift_off(self, t_s: float, drift: _DriftOff, value: float, alarm_limit: float, shown: Any) -> None:
+        """Judge ``drift`` with this step's deviation ``value`` [m or rad] (module docstring)."""
+        history = drift.history
+        if not history or t_s - history[-1][0] >= DRIFT_SAMPLE_S - 1e-9:
+            history.append((t_s, value))
+        window = DRIFT_WINDOW_S
+        while len(history) > 2 and history[1][0] <= t_s - 2.0 * window + 1e-9:
+            history.popleft()  # (keeps one sample at or before t − 2W)
+        d0 = drift.at(t_s - 2.0 * window)
+        d1 = drift.at(t_s - window)
+        if d0 is None or d1 is None:
+            return
+        s = self.settings
+        horizon = s.drift_off_horizon_s
+        rate = (value - d1) / window
+        accel = (value - 2.0 * d1 + d0) / (window * window)
+        growing = d0 < d1 < value and accel > 0.0 and \
+            value + rate * horizon + 0.5 * accel * horizon * horizon >= alarm_limit
+        if growing:
+            drift.still_since = None
+            if drift.growing_since is None:
+                drift.growing_since = t_s
+            if not drift.raised and t_s - drift.growing_since >= s.drift_off_persist_s:
+                kind = drift.code.split(".")[0]
+                self.alarms.raise_(t_s, drift.code, Severity.ALARM,
+                                   f"{kind} drift-off: {shown(value):.2f} {drift.unit} from the reference, moving away "
+                                   f"at {shown(rate):.3g} {drift.unit}/s and accelerating")
+                drift.raised = True
+        else:
+            drift.growing_since = None
+            if drift.raised and value <= d1:
+                if drift.still_since is None:
+                    drift.still_since = t_s
+                if t_s - drift.still_since >= s.persist_s:
+                    self._drift_release(t_s, drift)
+            else:
+                drift.still_since = None
+
+    def _drift_release(self, t_s: float, drift: _DriftOff) -> None:
+        if drift.raised:
+            self.alarms.clear(t_s, drift.code)
+            drift.raised = False
+        drift.reset()
 
     def _judge(self, t_s: float, limit: _Limit, value: float, shown: float) -> None:
         persist = self.settings.persist_s

@@ -20,6 +20,11 @@ applied to every position and heading sensor:
 * **re-estimation**: when every live reference of a kind has failed the prediction test for
   ``reject_persist_s`` and none had a sample accepted in that time, it is the estimate that is wrong
   (long dead reckoning): the references are trusted again and the caller re-initialises the estimator.
+  A *lone* reference of its kind (nothing to confirm it) is trusted so only after
+  ``single_reference_accept_s`` (alarm ``<kind>.reference_rejected`` meanwhile: the loop dead-reckons), or
+  at once when the operator accepts it (:meth:`SensorHub.accept_reference`);
+* **repeats**: a value repeated exactly is no new sample (the reference stays alive, the estimator is not
+  corrected with it; *frozen* after the window);
 
 Fusion is the inverse-variance weighted mean of the healthy references (latest samples, moved to
 the present with the estimated LF velocity). Bumpless, so that the estimator — and so the thrust —
@@ -107,7 +112,7 @@ class SensorConfig:
 
 @dataclass(frozen=True)
 class HubConfig:
-    """Thresholds of the quality tests (defaults per issue 8)."""
+    """Thresholds of the quality tests (defaults: docs/fault-handling.md)."""
 
     stale_periods: float = 5.0
     freeze_window_s: float = 5.0
@@ -117,6 +122,9 @@ class HubConfig:
     jump_min_m: float = 4.0
     heading_jump_min_rad: float = math.radians(5.0)
     reject_persist_s: float = 10.0
+    single_reference_accept_s: float = 180.0
+    dead_reckoning_drift_mps: float = 0.02
+    dead_reckoning_drift_radps: float = math.radians(0.02)
     variance_time_constant_s: float = 20.0
     variance_alarm_factor: float = 3.0
     median_limit_m: float = 3.0
@@ -281,6 +289,9 @@ class SensorHub:
         self.unknown_sources = 0
         self._disagree = {"position": False, "heading": False}
         self._rejecting = False  # some reference has a prediction-test failure pending (see _all_rejecting)
+        self._accept_requested: set[str] = set()  # references the operator accepted (accept_reference)
+        self._base_variance: Sequence[float] | None = None  # this update's prediction variance before any growth
+        self._lone_alarms: set[str] = set()  # <kind>.reference_rejected raised (see _lone_accepted)
         self._freeze_limit_s = config.freeze_window_s - 1e-9
         self._decay_dt = -1.0  # the period the bumpless offsets' decay factor was computed for [s]
         self._decay = 1.0
@@ -318,6 +329,10 @@ class SensorHub:
             self._decay = math.exp(-dt / self.config.switch_blend_s) if dt > 0.0 else 1.0
         for track in self._all:
             track.fresh = False
+        self._base_variance = predicted_variance
+        if predicted_variance is not None and \
+                (self._position_lost_since is not None or self._heading_lost_since is not None):
+            predicted_variance = self._dead_reckoning_variance(t_s, predicted_variance)
         tracks = self._tracks
         for measurement in measurements:
             track = tracks.get(measurement.source)
@@ -342,9 +357,15 @@ class SensorHub:
         if self._rejecting:  # (nothing to search for otherwise: the usual case)
             out.position_reset = self._all_rejecting(self._position, t_s)
             out.heading_reset = self._all_rejecting(self._heading, t_s)
-            self._rejecting = any(t.rejecting_since_t_s is not None for t in self._all)
+            self._rejecting = any(t.rejecting_since_t_s is not None for t in self._all) or bool(self._accept_requested)
         else:
             out.position_reset = out.heading_reset = False
+        if self._lone_alarms:  # a lone reference agrees again (or went away): the alarm clears
+            for code, tracks_of_kind in (("position.reference_rejected", self._position),
+                                         ("heading.reference_rejected", self._heading)):
+                if code in self._lone_alarms and all(t.rejecting_since_t_s is None for t in tracks_of_kind):
+                    self._lone_alarms.discard(code)
+                    self.alarms.clear(t_s, code)
         if out.position_reset:  # no bumpless fade towards a wrong estimate
             self._position_offset = [0.0, 0.0]
             self._position_used = []
@@ -371,6 +392,27 @@ class SensorHub:
         out.yaw_rate_radps = self._yaw_rate
         self._availability(t_s)
         return out
+
+    def _dead_reckoning_variance(self, t_s: float, variance: Sequence[float]) -> tuple[float, float, float]:
+        """The prediction's variance grown while a kind is dead-reckoned: + (drift × time lost)² [m², rad²].
+
+        The wave filter's steady-state gains carry the variance of a filter that is measured; dead reckoning
+        on the model, its error grows (an unmodelled change of current or wind, a bias not quite learnt) at
+        ``dead_reckoning_drift_mps`` / ``_radps`` (1σ). A reference that comes back consistent with the
+        dead-reckoned prediction within that grown uncertainty is taken back (blended in from the prediction,
+        see the module docstring) rather than rejected and, later, re-initialised on; a lone one that jumped
+        further than the growth allows stays rejected (``single_reference_accept_s``).
+        """
+        cfg = self.config
+        v0, v1, v2 = variance[0], variance[1], variance[2]
+        if self._position_lost_since is not None:
+            grown = cfg.dead_reckoning_drift_mps * (t_s - self._position_lost_since)
+            v0 += grown * grown
+            v1 += grown * grown
+        if self._heading_lost_since is not None:
+            grown = cfg.dead_reckoning_drift_radps * (t_s - self._heading_lost_since)
+            v2 += grown * grown
+        return v0, v1, v2
 
     def _nominal_sigma(self, track: _SensorTrack) -> float:
         """1-σ the sensor claims: recent GST statistics, else the configured noise."""
@@ -427,17 +469,28 @@ class SensorHub:
             track.detail = f"identical values for {t_s - frozen_since:.1f} s"
             return
         last_accepted = track.last_accepted_t_s
+        if track.rejecting_since_t_s is not None and variance is not self._base_variance and previous is not None \
+                and _distance(value, previous, heading) <= (cfg.heading_jump_min_rad if heading else cfg.jump_min_m):
+            # A reference being rejected that has not stepped since: its jump persists. Judged against the
+            # filter's own variance, not the one grown by dead reckoning — that growth is the estimate's
+            # uncertainty about a reference that was *absent*, and would let a persisting jump in after a while.
+            # (One that steps back — the jump over — is judged against the grown variance, as a return.)
+            variance = self._base_variance
         # Prediction test against the wave filter (total motion, LF + WF).
         if predicted is not None and variance is not None:
+            # (judged as it would reach the estimator: with the offset the hub is fading out added — after a
+            # return from dead reckoning that offset holds the estimate at its prediction, and the raw samples
+            # differ from the prediction by it until it has faded)
             sigma = self._sigma(track)
             if heading:
-                r0 = ssa(v0 - predicted[2])
+                r0 = ssa(v0 + self._heading_offset - predicted[2])
                 r1 = 0.0
                 limit = max(cfg.heading_jump_min_rad, cfg.jump_sigma_factor * math.sqrt(variance[2] + sigma * sigma))
                 distance = abs(r0)
             else:
-                r0 = v0 - predicted[0]
-                r1 = v1 - predicted[1]
+                offset = self._position_offset
+                r0 = v0 + offset[0] - predicted[0]
+                r1 = v1 + offset[1] - predicted[1]
                 limit = max(cfg.jump_min_m,
                             cfg.jump_sigma_factor * math.sqrt(0.5 * (variance[0] + variance[1]) + sigma * sigma))
                 distance = math.hypot(r0, r1)
@@ -471,6 +524,14 @@ class SensorHub:
                 track.residual_variance = own if measured is None else (1.0 - alpha) * measured + alpha * own
         else:
             track.previous_residual = track.previous_residual2 = None
+        if frozen_since is not None:
+            # A value repeated exactly is no new measurement: the reference stays alive (a quantised heading
+            # repeats now and then) but the estimator is not corrected with it, so that a reference that froze
+            # does not hold the estimate still for the freeze window (its bias states learn the vessel's true
+            # motion as a force otherwise, and the dead reckoning that follows drifts). Frozen after the window.
+            track.last_accepted_t_s = t_s
+            track.detail = ""
+            return
         # Low-pass the accepted values for the median test (so noise does not flip it on and off) and for
         # the level of each reference in a bumpless switch. After a gap it restarts as a running mean
         # (weight 1/n until that is below the low-pass weight): one raw sample is no level.
@@ -503,11 +564,20 @@ class SensorHub:
         persist = self.config.reject_persist_s
         live = [t for t in tracks if t.last_t_s is not None and not t.disconnected and
                 t_s - t.last_t_s <= t.stale_s and t.state is not SensorState.FROZEN]
-        if not live or any(t.rejecting_since_t_s is None or t_s - t.rejecting_since_t_s < persist for t in live):
-            return False
-        if any(t.last_accepted_t_s is not None and t_s - t.last_accepted_t_s < persist for t in tracks):
-            return False
+        accepted = [t for t in live if t.name in self._accept_requested and t.rejecting_since_t_s is not None]
+        why = "all references disagreed with the estimate; estimator re-initialised on them"
+        if accepted:  # the operator's word (accept_reference): at once
+            live = accepted
+            why = f"operator accepted {', '.join(t.name for t in accepted)}; estimator re-initialised on it"
+        else:
+            if not live or any(t.rejecting_since_t_s is None or t_s - t.rejecting_since_t_s < persist for t in live):
+                return False
+            if any(t.last_accepted_t_s is not None and t_s - t.last_accepted_t_s < persist for t in tracks):
+                return False
+            if len(live) == 1 and not self._lone_accepted(live[0], t_s):
+                return False
         for track in live:
+            self._accept_requested.discard(track.name)
             track.rejecting_since_t_s = None
             track.residual_variance = None
             track.variance_samples = 0
@@ -515,8 +585,43 @@ class SensorHub:
             track.accepted_value = track.value
             track.last_accepted_t_s = track.last_t_s
             track.fresh = True
-        self.alarms.raise_(t_s, "estimator.reset", Severity.ALARM,
-                           "all references disagreed with the estimate; estimator re-initialised on them")
+        self.alarms.raise_(t_s, "estimator.reset", Severity.ALARM, why)
+        code = "heading.reference_rejected" if live[0].heading else "position.reference_rejected"
+        if code in self._lone_alarms:
+            self._lone_alarms.discard(code)
+            self.alarms.clear(t_s, code)
+        return True
+
+    def _lone_accepted(self, track: _SensorTrack, t_s: float) -> bool:
+        """A lone reference of its kind failing the prediction test: nothing confirms it, so it is not taken for
+        the truth before ``single_reference_accept_s`` (a jump or a drift of that receiver would otherwise be
+        followed after ``reject_persist_s``). Meanwhile the loop dead-reckons and ``<kind>.reference_rejected``
+        says so; after that time it is accepted (the estimate, not the reference, is taken to be wrong)."""
+        since = track.rejecting_since_t_s
+        assert since is not None
+        accept_s = self.config.single_reference_accept_s
+        if t_s - since >= accept_s:
+            return True
+        kind = "heading" if track.heading else "position"
+        code = f"{kind}.reference_rejected"
+        if code not in self._lone_alarms:
+            self._lone_alarms.add(code)
+            self.alarms.raise_(t_s, code, Severity.ALARM,
+                               f"{track.name}, the only {kind} reference, disagrees with the estimate "
+                               f"({track.detail}): "
+                               f"rejected, dead reckoning; taken as the truth after {accept_s:g} s or when the "
+                               "operator accepts it")
+        return False
+
+    def accept_reference(self, name: str) -> bool:
+        """The operator accepts reference ``name`` as the truth: when it is failing the prediction test, the
+        estimator is re-initialised on it at the next update (:attr:`HubOutput.position_reset` /
+        ``heading_reset``). Returns whether such a reference exists."""
+        track = self._tracks.get(name)
+        if track is None:
+            return False
+        self._accept_requested.add(name)
+        self._rejecting = True  # (the search for a reset runs at the next update)
         return True
 
     # ------------------------------------------------------------------ states and voting

@@ -10,10 +10,10 @@ Time is an argument (``t_s``): the daemon passes its monotonic clock, the lockst
 stepped clock. Nothing here reads a clock, sleeps or does I/O, so the same inputs give the same
 commands — which is what makes a recorded run replayable.
 
-Modes (issue 7 §2): ``standby`` (no thrust), ``auto_heading`` (heading controlled, zero surge and
+Modes (docs/design.md §8): ``standby`` (no thrust), ``auto_heading`` (heading controlled, zero surge and
 sway force), ``auto_position`` (DP). Entering a controlled mode is bumpless: the reference model
 starts at the current estimate and velocity, and moves to the setpoint at its speed limits.
-Fall-backs (issue 8 §5, §7): position references lost → dead reckoning on the model (alarm) and,
+Fall-backs (docs/fault-handling.md): position references lost → dead reckoning on the model (alarm) and,
 after ``dead_reckoning_limit_s``, the configured fall-back; heading lost → the configured
 fall-back after ``heading_loss_limit_s``. The allocator's thrust-rate limits make every transition
 a ramp, never a jump.
@@ -218,7 +218,13 @@ class DpController:
         self._engaged_once = False
         self._shortfall_since: float | None = None
         self._dead_reckoning_alarm = False  # position.dead_reckoning / heading.lost raised (to be cleared)
+        # (available mask, mode) → why the available thrusters cannot hold that mode's DOFs ("" they can); the mode
+        # whose refusal raised thrusters.insufficient (None: not raised)
+        self._thrust_verdicts: dict[tuple[bytes, Mode], str] = {}
+        self._insufficient_for: Mode | None = None
         self._heading_lost_alarm = False
+        # the mode a fall-back left and when (None: no fall-back to undo; see _restore)
+        self._fell_back: tuple[Mode, float] | None = None
         # every request's outcome, newest last: the status lists the last second's (several in one cycle each
         # get their own answer) and the last (a sender finds its seq there)
         self.recent_requests: deque[RequestOutcome] = deque(maxlen=RECENT_REQUESTS)
@@ -234,6 +240,12 @@ class DpController:
     def request_mode(self, mode: str | Mode) -> None:
         """Ask for a mode (applied at the next step, if the conditions allow)."""
         self._requested_mode = Mode(mode)
+
+    def accept_reference(self, name: str) -> bool:
+        """The operator accepts reference ``name`` as the truth (:meth:`SensorHub.accept_reference`): a lone
+        reference the prediction test rejects re-initialises the estimator on it at the next step, rather than
+        after ``hub.single_reference_accept_s``. Returns whether the reference exists."""
+        return self.hub.accept_reference(name)
 
     def _apply_requests(self, t_s: float, requests: Iterable[SetpointRequest]) -> None:
         """Apply this step's requests in their order of arrival, each answered on its own (:meth:`_report_requests`):
@@ -259,6 +271,7 @@ class DpController:
                         taken[self._mode_request][2].append(
                             f"mode {request.mode} requested after it in the same cycle (seq {request.seq})")
                     self._mode_request = len(taken)
+                    self._fell_back = None  # the operator decides: no automatic return
             if request.reset_thruster is not None:
                 self._reset_thruster(request.reset_thruster, refusals, notes)
             out.rejected_requests.extend(refusals)
@@ -430,6 +443,8 @@ class DpController:
 
         # --- thruster health and allocation
         available = self.monitor.update(t_s, dt, out.thrust_n)
+        if self._insufficient_for is not None:
+            self._clear_insufficient(t_s)
         self._allocate(dt, available, rudder_command)
         t4 = clock() if clock else 0.0
 
@@ -460,7 +475,7 @@ class DpController:
         """The reference with its acceleration rate-limited to what the drives can follow.
 
         The reference model saturates its acceleration at the guidance limit without a jerk limit:
-        a set-point far away (issue 8 §12: 1 km) takes η̈_d from 0 to the limit in one period, and the
+        a set-point far away (fault case 12: 1 km) takes η̈_d from 0 to the limit in one period, and the
         controller's feed-forward M·η̈_d makes that a force step (64 kN on the supply vessel, six
         times what its drives can change in 0.1 s). The feed-forward acceleration therefore follows
         η̈_d at most at ``(Σ|B|·Ṫmax) / M`` per DOF; pose and velocity references are unchanged (the
@@ -541,23 +556,42 @@ class DpController:
             self._dead_reckoning_alarm = True
         elif self._dead_reckoning_alarm:
             self.alarms.clear(t_s, "position.dead_reckoning")
+            self.alarms.clear(t_s, "position.dead_reckoning_limit")
             self._dead_reckoning_alarm = False
         heading_lost = self._estimator_ready and not hub.heading_available
         if heading_lost:
             self.alarms.raise_(t_s, "heading.lost", Severity.ALARM,
                                f"no heading reference for {hub.heading_lost_s:.1f} s")
             self._heading_lost_alarm = True
+            if self.mode is not Mode.STANDBY:
+                self.alarms.raise_(t_s, "heading.dead_reckoning", Severity.ALARM,
+                                   f"no heading reference: heading dead-reckoned for {hub.heading_lost_s:.1f} s")
         elif self._heading_lost_alarm:
             self.alarms.clear(t_s, "heading.lost")
+            self.alarms.clear(t_s, "heading.dead_reckoning")
+            self.alarms.clear(t_s, "heading.dead_reckoning_limit")
             self._heading_lost_alarm = False
         if self.mode is not Mode.STANDBY:
             if heading_lost and hub.heading_lost_s >= fb.heading_loss_limit_s:
-                wanted = Mode.STANDBY if fb.heading_loss == "standby" else Mode.AUTO_HEADING
-                self._fallback(t_s, wanted, "heading references lost")
+                if fb.heading_loss == "dead_reckoning":
+                    self.alarms.raise_(t_s, "heading.dead_reckoning_limit", Severity.CRITICAL,
+                                       f"heading dead-reckoned beyond {fb.heading_loss_limit_s:g} s: still holding "
+                                       "on the model; the operator decides")
+                else:
+                    wanted = Mode.STANDBY if fb.heading_loss == "standby" else Mode.AUTO_HEADING
+                    self._fallback(t_s, wanted, "heading references lost")
             elif self.mode is Mode.AUTO_POSITION and dead_reckoning and \
                     hub.position_lost_s >= fb.dead_reckoning_limit_s:
-                wanted = Mode.STANDBY if fb.position_loss == "standby" else Mode.AUTO_HEADING
-                self._fallback(t_s, wanted, "position references lost")
+                if fb.position_loss == "dead_reckoning":
+                    self.alarms.raise_(t_s, "position.dead_reckoning_limit", Severity.CRITICAL,
+                                       f"position dead-reckoned beyond {fb.dead_reckoning_limit_s:g} s: still "
+                                       "holding on the model; the operator decides")
+                else:
+                    wanted = Mode.STANDBY if fb.position_loss == "standby" else Mode.AUTO_HEADING
+                    self._fallback(t_s, wanted, "position references lost")
+        fell_back = self._fell_back
+        if fell_back is not None and wanted is self.mode and self._requested_mode is self.mode:
+            wanted = self._restore(t_s, hub, fell_back)
         if wanted is self.mode:
             return
         if wanted is not Mode.STANDBY:
@@ -568,6 +602,8 @@ class DpController:
                 refuse = "no heading reference"
             elif wanted is Mode.AUTO_POSITION and not hub.position_available:
                 refuse = "no position reference"
+            else:
+                refuse = self._thrusters_insufficient(t_s, wanted) or None
             if refuse is not None:
                 text = f"{wanted.value} refused: {refuse}"
                 out.rejected_requests.append(text)
@@ -593,11 +629,70 @@ class DpController:
                     self.setpoint_n[:] = estimate.eta_hat_n
             self._engaged_once = True
         out.mode_changes.append((self.mode.value, wanted.value, self._fallback_reason or "operator"))
-        if not self._fallback_reason:  # the operator took over again: the fall-back is history
+        if self._fallback_reason.startswith("restored") and self._fell_back is not None:
+            self._fell_back = None
+            self.alarms.clear(t_s, "mode.fallback")
+            text = f"{self._fallback_reason[len('restored: '):]}: {wanted.value} restored"
+            self.alarms.raise_(t_s, "mode.restored", Severity.INFO, text)
+            self.alarms.clear(t_s, "mode.restored")  # (an event in the record, not a standing alarm)
+        elif not self._fallback_reason:  # the operator took over again: the fall-back is history
             self.alarms.clear(t_s, "mode.fallback")
         self._fallback_reason = ""
         self.mode = wanted
         self._requested_mode = wanted
+
+    def _thrusters_insufficient(self, t_s: float, mode: Mode) -> str:
+        """Why the thrusters available now cannot hold ``mode``'s degrees of freedom ("" when they can), raising
+        ``thrusters.insufficient`` (critical) when they cannot: a controlled mode engaged without the means to
+        hold it is a drift-off the operator believes is DP. ``auto_position`` holds surge, sway and yaw,
+        ``auto_heading`` yaw; the available thrusters' columns of the configuration matrix B must span them
+        (rank), a necessary condition the allocation's capability alarm completes with the forces needed."""
+        available = self.monitor.available
+        key = (available.tobytes(), mode)
+        verdict = self._thrust_verdicts.get(key)
+        if verdict is None:
+            verdict = self._judge_thrusters(available, mode)
+            if len(self._thrust_verdicts) < 256:  # (masks seen; bounded for a fleet of many drives)
+                self._thrust_verdicts[key] = verdict
+        if verdict:
+            self.alarms.raise_(t_s, "thrusters.insufficient", Severity.CRITICAL, f"{mode.value} refused: {verdict}")
+            self._insufficient_for = mode
+        return verdict
+
+    def _judge_thrusters(self, available: np.ndarray, mode: Mode) -> str:
+        """:meth:`_thrusters_insufficient`'s verdict for an availability mask (uncached)."""
+        if not available.any():
+            return "no thruster available"
+        if self.autopilot is not None:
+            if self._rudder_index is None or not available[self._rudder_index]:
+                return "the rudder is not available"
+            return ""
+        geometry = self.allocator.geometry
+        variables = geometry.variables_of(available)
+        # the force of each available variable at its thruster's rating [N, N, N·m] ...
+        columns = geometry.B[:, variables] * geometry.scale_n[geometry.variable_thruster[variables]]
+        held = [0, 1, 2] if mode is Mode.AUTO_POSITION else [2]
+        scale = self.allocator.capability_scale[held]
+        # ... and the rank of the held DOFs' rows, each over the fleet's capability in it (N and N·m compared)
+        rows = columns[held] / scale[:, None]
+        if np.linalg.matrix_rank(rows, tol=1e-6) < len(held):
+            names = ", ".join(spec.name for spec, ok in zip(self.thrusters, available.tolist(), strict=True) if ok)
+            dofs = "surge, sway and yaw" if mode is Mode.AUTO_POSITION else "yaw"
+            return f"the available thrusters ({names}) cannot produce {dofs}"
+        return ""
+
+    def _clear_insufficient(self, t_s: float) -> None:
+        """Clear ``thrusters.insufficient`` once the thrusters available could hold the refused mode again."""
+        mode = self._insufficient_for
+        if mode is None:
+            return
+        available = self.monitor.available
+        verdict = self._thrust_verdicts.get((available.tobytes(), mode))
+        if verdict is None:
+            verdict = self._judge_thrusters(available, mode)
+        if not verdict:
+            self.alarms.clear(t_s, "thrusters.insufficient")
+            self._insufficient_for = None
 
     def _supervise(self, controller: MracController, t_s: float) -> None:
         """``control.adaptation``: an MRAC estimate on its projection bound suspends the adaptation.
@@ -619,6 +714,21 @@ class DpController:
         self._fallback_reason = f"fallback: {reason}"
         self.alarms.raise_(t_s, "mode.fallback", Severity.ALARM, f"{reason}: fell back to {mode.value}")
         self._requested_mode = mode
+        if self._fell_back is None:  # (the first fall-back's mode is the one to return to)
+            self._fell_back = (self.mode, t_s)
+
+    def _restore(self, t_s: float, hub: HubOutput, fell_back: tuple[Mode, float]) -> Mode:
+        """The mode to be in after a fall-back: the one fallen back from once its references are back, if the
+        fall-back has lasted less than ``fallback.restore_within_s`` (an event says so, ``mode.restored``);
+        after that the operator decides (and ``mode.fallback`` stays up)."""
+        mode, since = fell_back
+        if t_s - since > self.config.fallback.restore_within_s:
+            self._fell_back = None
+            return self.mode
+        if not (hub.heading_available and (hub.position_available or mode is not Mode.AUTO_POSITION)):
+            return self.mode
+        self._fallback_reason = f"restored: references back after {t_s - since:.1f} s of fall-back"
+        return mode
 
     def _capability_alarm(self, t_s: float) -> None:
         """``thrusters.capability``: the allocator has left part of the demand unmet for
@@ -658,7 +768,7 @@ class DpController:
 
     # ------------------------------------------------------------------ persistence
     def state_dict(self, t_s: float) -> dict[str, Any]:
-        """Everything needed to resume without a jump (issue 9 §4); JSON-able."""
+        """Everything needed to resume without a jump (docs/installation.md, restarts); JSON-able."""
         state: dict[str, Any] = {
             "version": STATE_VERSION, "t_s": t_s, "config_sha256": self.config.config_hash,
             "mode": self.mode.value, "setpoint_n": self.setpoint_n.tolist(), "setpoint_given": self._setpoint_given,

@@ -1,12 +1,20 @@
-"""Thruster health from drive feedback (issue 8 §10).
+"""Thruster health from drive feedback (docs/fault-handling.md).
 
 A thruster is taken out of the allocation — and commanded to zero — when its drive reports it is
 not ready, or when the thrust it delivers disagrees with what a healthy drive would deliver for the
 commands it was given (stuck, dead, wrong sign). The expected thrust follows the commands through
 the drive's first-order response and rate limit (``ThrusterSpec.time_constant_s``,
 ``thrust_rate_limit_nps``), so ordinary lag is not a fault. The disagreement must exceed
-``mismatch_fraction`` of the drive's rating — or, at low load, half of the expected thrust (at least
-5 % of the rating) — for ``mismatch_persist_s``, both low-passed over 1 s.
+``mismatch_fraction`` of the drive's rating — or, at low load, half of the expected thrust, never less
+than the absolute floor ``mismatch_floor_fraction`` of the rating — for ``mismatch_persist_s``, both
+low-passed over 1 s. The floor is what keeps a drive asked for (almost) nothing from being judged on
+noise: a limit relative to an expected 4e-16 N would latch a healthy drive delivering 0 N.
+
+Only *new* feedback is judged: a sample repeated by the transport, or the last one of a drive that went
+silent, says nothing about what the drive does now (compared with an expectation that keeps following
+the commands, it made a mismatch out of a loss of feedback). A drive whose feedback returns after a loss
+(the drives or the plant restarted) is judged afresh from what it reports then: no mismatch pending from
+before the loss, the expected thrust starting at the delivered one.
 
 A "not ready" thruster is re-admitted after it has reported ready for ``readmit_s``; a mismatch
 failure latches until an operator resets it (``reset(name)``), because a drive that delivered the
@@ -29,13 +37,15 @@ from dpcontrol.runtime.config import ThrusterMonitorSettings
 
 MISMATCH_FILTER_S = 1.0  # time constant of the low-passed thrust mismatch [s]
 RELATIVE_MISMATCH = 0.5  # share of the expected thrust the delivered one may miss at low load [-]
-RELATIVE_FLOOR = 0.05  # below this share of the rating a drive's thrust is not judged [-]
+RELATIVE_FLOOR = 0.05  # default absolute floor of the mismatch limit, as a share of the rating [-]
 
 # Columns of the monitor's per-drive table (float): constants, then the state ThrusterMonitor.update advances
-# (NaN in a *_SINCE column: no such time), then the expected thrust when a mismatch failure latched (its text)
+# (NaN in a *_SINCE column: no such time), then the expected thrust when a mismatch failure latched (its text),
+# the receive time of the last feedback sample judged and when it was judged [s], and whether the drive's feedback
+# is lost (1.0; also before the first feedback): judged afresh when it returns
 (D_RATING, D_TIME_CONSTANT, D_RATE, D_EXPECTED, D_ERROR, D_LIMIT, D_READY_SINCE, D_MISMATCH_SINCE,
- D_FAILED_EXPECTED) = range(9)
-DRIVE_COLUMNS = 9
+ D_FAILED_EXPECTED, D_JUDGED_SAMPLE, D_JUDGED_AT, D_LOST) = range(12)
+DRIVE_COLUMNS = 12
 # Columns of the feedback table (float): the latest feedback per drive; FB_READY is NaN before the first one
 FB_THRUST, FB_T, FB_READY = range(3)
 FEEDBACK_COLUMNS = 3
@@ -47,20 +57,21 @@ E_READMITTED = 8   # ready for readmit_s: back in use
 E_FAILED = 16      # a mismatch failure latched this update
 
 
-def mismatch_limit_n(rating_n: float, expected_n: float, fraction: float) -> float:
+def mismatch_limit_n(rating_n: float, expected_n: float, fraction: float,
+                     floor_fraction: float = RELATIVE_FLOOR) -> float:
     """How far a drive's delivered thrust may be from a healthy drive's ``expected_n`` [N]: ``fraction``
-    of its rating ``rating_n``, or at low load :data:`RELATIVE_MISMATCH` of the expected thrust, floored
-    at :data:`RELATIVE_FLOOR` of the rating."""
-    return min(fraction * rating_n, max(RELATIVE_MISMATCH * abs(expected_n), RELATIVE_FLOOR * rating_n))
+    of its rating ``rating_n``, or at low load :data:`RELATIVE_MISMATCH` of the expected thrust, never
+    below the absolute floor ``floor_fraction`` × the rating."""
+    return min(fraction * rating_n, max(RELATIVE_MISMATCH * abs(expected_n), floor_fraction * rating_n))
 
 
-_mismatch_limit_compiled = kernel(f8(f8, f8, f8))(mismatch_limit_n)  # the same source, for _advance
+_mismatch_limit_compiled = kernel(f8(f8, f8, f8, f8))(mismatch_limit_n)  # the same source, for _advance
 
 
-@kernel(i8(f8, f8, f8_1d, f8_2d, f8_2d, b1_1d, b1_1d, f8, f8, f8, f8, b1_1d, i8_1d))
+@kernel(i8(f8, f8, f8_1d, f8_2d, f8_2d, b1_1d, b1_1d, f8, f8, f8, f8, f8, b1_1d, i8_1d))
 def _advance(t_s: float, dt_s: float, commanded_n: np.ndarray, drive: np.ndarray, feedback: np.ndarray,  # noqa: PLR0917 - a kernel: numba's calls are positional
-             not_ready: np.ndarray, failed: np.ndarray, timeout_s: float, fraction: float, persist_s: float,
-             readmit_s: float, available: np.ndarray, events: np.ndarray) -> int:
+             not_ready: np.ndarray, failed: np.ndarray, timeout_s: float, fraction: float, floor_fraction: float,
+             persist_s: float, readmit_s: float, available: np.ndarray, events: np.ndarray) -> int:
     """One :meth:`ThrusterMonitor.update` of every drive's numbers (module docstring); the alarms are the caller's.
 
     Parameters
@@ -70,7 +81,7 @@ def _advance(t_s: float, dt_s: float, commanded_n: np.ndarray, drive: np.ndarray
     drive : (n, DRIVE_COLUMNS) the per-drive table (``D_*`` columns), advanced in place
     feedback : (n, 3) the latest feedback (``FB_*`` columns)
     not_ready, failed : (n,) the drive reported not ready / a mismatch failure is latched (in place)
-    timeout_s, fraction, persist_s, readmit_s : the monitor's settings
+    timeout_s, fraction, floor_fraction, persist_s, readmit_s : the monitor's settings
     available : (n,) out — in the allocation; events : (n,) out — ``E_*`` bits
 
     Returns
@@ -78,7 +89,6 @@ def _advance(t_s: float, dt_s: float, commanded_n: np.ndarray, drive: np.ndarray
     int
         The number of drives with an event.
     """
-    mismatch_alpha = -math.expm1(-dt_s / MISMATCH_FILTER_S) if dt_s > 0.0 else 0.0
     flagged = 0
     for i in range(drive.shape[0]):
         expected = drive[i, D_EXPECTED]
@@ -93,12 +103,23 @@ def _advance(t_s: float, dt_s: float, commanded_n: np.ndarray, drive: np.ndarray
         event = 0
         ready_code = feedback[i, FB_READY]
         if math.isnan(ready_code) or t_s - feedback[i, FB_T] > timeout_s:
-            # No (recent) feedback: availability keeps its last state; flag only if it was seen before.
+            # No (recent) feedback: availability keeps its last state; flag only if it was seen before. The
+            # drive is judged afresh when it reports again.
             if not math.isnan(ready_code):
                 event |= E_STALE
+                drive[i, D_LOST] = 1.0
         else:
             ready = ready_code != 0.0
             delivered = feedback[i, FB_THRUST]
+            if drive[i, D_LOST] != 0.0:
+                # Feedback (back) after a loss: the drive (restarted, perhaps) starts from what it delivers now;
+                # a mismatch pending before the loss is not carried over it.
+                drive[i, D_LOST] = 0.0
+                expected = delivered
+                drive[i, D_ERROR] = 0.0
+                drive[i, D_LIMIT] = np.inf
+                drive[i, D_MISMATCH_SINCE] = np.nan
+                drive[i, D_JUDGED_AT] = np.nan
             if not ready:
                 not_ready[i] = True
                 drive[i, D_READY_SINCE] = np.nan
@@ -112,18 +133,26 @@ def _advance(t_s: float, dt_s: float, commanded_n: np.ndarray, drive: np.ndarray
                     drive[i, D_ERROR] = 0.0
                     drive[i, D_LIMIT] = np.inf
                     event |= E_READMITTED
-            if ready and not failed[i] and not not_ready[i]:
+            sample_t = feedback[i, FB_T]
+            if ready and not failed[i] and not not_ready[i] and sample_t != drive[i, D_JUDGED_SAMPLE]:
+                # (a new sample only: a repeated one says nothing about what the drive does now)
                 # The error and the limit are low-passed (the command of a drive in DP fluctuates; a dead
                 # drive's error dips whenever its command does) and judged with hysteresis: the mismatch
                 # persists until the filtered error falls below half the limit. The limit is
                 # mismatch_fraction of the rating, or — when the drive is asked for less — half of what it
-                # should deliver, floored at RELATIVE_FLOOR of the rating: a drive delivering nothing (or
-                # pushing the wrong way) at 5–20 % load is a failure too.
+                # should deliver, floored at floor_fraction of the rating: a drive delivering nothing (or
+                # pushing the wrong way) at 5–20 % load is a failure too. The filters advance by the time since
+                # the last sample judged.
                 error = abs(delivered - expected)
-                limit_now = _mismatch_limit_compiled(drive[i, D_RATING], expected, fraction)
+                limit_now = _mismatch_limit_compiled(drive[i, D_RATING], expected, fraction, floor_fraction)
                 if not math.isfinite(drive[i, D_LIMIT]):
                     drive[i, D_LIMIT] = limit_now
-                if dt_s > 0.0:
+                judged_at = drive[i, D_JUDGED_AT]
+                elapsed = dt_s if math.isnan(judged_at) else t_s - judged_at
+                drive[i, D_JUDGED_SAMPLE] = sample_t
+                drive[i, D_JUDGED_AT] = t_s
+                if elapsed > 0.0:
+                    mismatch_alpha = -math.expm1(-elapsed / MISMATCH_FILTER_S)
                     drive[i, D_ERROR] += (error - drive[i, D_ERROR]) * mismatch_alpha
                     drive[i, D_LIMIT] += (limit_now - drive[i, D_LIMIT]) * mismatch_alpha
                 limit = drive[i, D_LIMIT]
@@ -211,6 +240,9 @@ class ThrusterMonitor:
         self._drive[:, D_LIMIT] = np.inf  # the mismatch limit is set at the first feedback
         self._drive[:, D_READY_SINCE] = np.nan
         self._drive[:, D_MISMATCH_SINCE] = np.nan
+        self._drive[:, D_JUDGED_SAMPLE] = np.nan
+        self._drive[:, D_JUDGED_AT] = np.nan
+        self._drive[:, D_LOST] = 1.0  # no feedback yet: the first is judged afresh
         self._not_ready = np.zeros(n, dtype=bool)
         self._failed = np.zeros(n, dtype=bool)
         self._events = np.zeros(n, dtype=np.int64)
@@ -293,10 +325,12 @@ class ThrusterMonitor:
             # the settings as the kernel's floats, converted again only when settings or readmit_s are replaced
             s = self.settings
             limits = self._limits = (s, self.readmit_s, float(s.feedback_timeout_s), float(s.mismatch_fraction),
-                                     float(s.mismatch_persist_s), float(self.readmit_s))
-        _, _, timeout, fraction, persist, readmit = limits
+                                     float(s.mismatch_floor_fraction), float(s.mismatch_persist_s),
+                                     float(self.readmit_s))
+        _, _, timeout, fraction, floor_fraction, persist, readmit = limits
         flagged = _advance(float(t_s), float(dt_s), commanded, self._drive, self._feedback, self._not_ready,
-                           self._failed, timeout, fraction, persist, readmit, self.available, self._events)
+                           self._failed, timeout, fraction, floor_fraction, persist, readmit, self.available,
+                           self._events)
         if flagged or self._raised:
             self._raise_and_clear(t_s)
         return self.available

@@ -1,4 +1,4 @@
-"""Issue 8 cases 1–7 on the emulated plant: position and heading reference faults, in lockstep.
+"""Fault cases 1–7 on the emulated plant: position and heading reference faults, in lockstep.
 
 Each scenario in ``sim_plant/scenarios/faults/`` (its header says what is injected, what must happen
 and the bound) runs once per module through the real codecs, the daemon's sensor hub, wave filter,
@@ -268,14 +268,20 @@ def test_case5_all_lost_dead_reckoning_then_the_configured_fallback_without_a_ju
     assert "position.dead_reckoning" in run.status.active_codes(dead_reckoning)
     limit = config.fallback.dead_reckoning_limit_s
     changes = _modes(run)[1:]
-    assert len(changes) == 1
+    assert len(changes) == 2
     t_fallback, old, new, reason = changes[0]
     assert (old, new) == ("auto_position", "auto_heading") and reason.startswith("fallback")  # hold_heading
     assert limit <= t_fallback - dead_reckoning <= limit + DT
     assert _raised(run, "mode.fallback", t_fallback) == pytest.approx(t_fallback)
     assert "mode.fallback" in run.status.active_codes(t_fallback)
+    # the fall-back lasted less than fallback.restore_within_s: auto_position again when the references are back
+    t_restored, old, new, reason = changes[1]
+    assert (old, new) == ("auto_heading", "auto_position") and reason.startswith("restored")
+    assert 250.0 <= t_restored <= 250.0 + 1.0 and t_restored - t_fallback < config.fallback.restore_within_s
+    assert _raised(run, "mode.restored", t_restored) == pytest.approx(t_restored)
+    assert not run.status.active_codes(t_restored + 1.0) & {"mode.fallback"}
     # auto_heading: zero surge/sway force, heading still held on the gyro
-    after = run.between(t_fallback + DT, 280.0)
+    after = run.between(t_fallback + DT, t_restored)
     assert np.all(run.tau_b()[after, :2] == 0.0)
     assert np.degrees(np.nanmax(run.heading_error_rad()[after])) <= HEADING_BOUND_DEG
     # never a jump: the estimate moves continuously through dead reckoning, the fall-back and the
@@ -283,7 +289,7 @@ def test_case5_all_lost_dead_reckoning_then_the_configured_fallback_without_a_ju
     est = np.column_stack([run.col("est_north_m"), run.col("est_east_m")])
     assert np.hypot(*np.diff(est[run.between(150.0, 280.0)], axis=0).T).max() < 0.2
     assert not any(raised for _, raised in run.events("estimator.reset"))
-    assert run.col("mode")[-1] == 1.0  # stays in auto_heading until the operator asks again
+    assert run.col("mode")[-1] == 2.0  # auto_position, restored
     _common(run, until_s=t_fallback)
 
 

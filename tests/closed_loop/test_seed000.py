@@ -2,7 +2,7 @@
 
 The shipped scenario ``cs2-seed000`` (JONSWAP Hs = 0.08 m, ωp = 0.93 rad/s from 30°, through the
 plant's RAOs; sensors through the NMEA codecs; seed 000 App. A.3 PID; 10 m surge step at 40 s) runs
-in lockstep for 450 s (a few seconds of wall time). Headlines (issue 3, seed 000 Sect. 4 / Fig. 3):
+in lockstep for 450 s (a few seconds of wall time). Headlines (seed 000 Sect. 4 / Fig. 3):
 
 * the weights settle on the 0.9 rad/s model and stay there: no chatter (the bug guarded here, also in
   the old conditions — Hs = 1.2 m, default tuning — where the per-sample likelihood made all eight
@@ -94,7 +94,7 @@ def test_weights_settle_on_the_0_9_model_without_chatter(run: RunResult) -> None
 
 @pytest.mark.parametrize("likelihood", ["band", "common"])
 def test_no_chatter_in_the_conditions_that_made_the_weights_chatter(likelihood: str) -> None:
-    """Issue 3 as the lead measured it: the old scenario (full-scale Hs = 1.2 m on the 1.255 m model) and
+    """The first reproduction's measure: the old scenario (full-scale Hs = 1.2 m on the 1.255 m model) and
     the default estimator tuning (noise intensities 4× off the sensors). The per-sample likelihood
     ("common") makes the weights jump between models every second; the band-limited one does not."""
     scenario = load_scenario(builtin_scenario_path("cs2-seed000"))

@@ -7,7 +7,7 @@ wind, current, seed 001 Table I wave heights; PID) with the four sea states shor
 physics, the bank and the tuning are the scenario's; only the dwell times shrink, which can only make
 the requirement harder (less time to switch and to show that the new model stays).
 
-Requirement (seed 001 Fig. 3, issue 3): after each change the dominant weight moves to the model of the
+Requirement (seed 001 Fig. 3): after each change the dominant weight moves to the model of the
 new sea state within 300 s and stays there to the end of that sea state. At the calm/moderate boundary
 (0.79 rad/s, motion peak 0.779) seed 001 shows p2 ≈ p3 ≈ 0.5: either 0.73 or 0.80 may lead.
 Measured on the full scenario (seed 11): switches 75–89 s after each change (see the report).

@@ -1,4 +1,4 @@
-"""The soak benchmark (``benchmarks/soak.py``, issue 8) in miniature: 40 simulated minutes with a random
+"""The soak benchmark (``benchmarks/soak.py``, docs/fault-handling.md) in miniature: 40 simulated minutes with a random
 fault every few minutes, in lockstep. The 24 h run is the benchmark; this keeps its machinery honest on
 every commit: no exception, no NaN in any output, every detectable fault detected within its bound."""
 

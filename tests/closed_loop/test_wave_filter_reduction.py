@@ -1,4 +1,4 @@
-"""The wave filter keeps the wave-frequency motion out of the commanded force (issue 3, seed 002 Fig. 7).
+"""The wave filter keeps the wave-frequency motion out of the commanded force (seed 002 Fig. 7).
 
 CyberShip II in the shipped ``cs2-seed000`` sea (JONSWAP Hs = 0.08 m, ωp = 0.93 rad/s, through the RAOs),
 keeping station at the origin for 450 s, twice with the same seed 000 PID: once with the MMAE wave
@@ -35,7 +35,7 @@ from sim_plant.scenario import Setpoint, builtin_scenario_path, load_scenario
 
 DURATION_S = 450.0
 SETTLED_FROM_S = 250.0        # the bank has identified the sea (0.9 rad/s model leading from ≈ 218 s)
-REDUCTION = 10.0              # issue 3: at least 10× less wave-frequency force than raw feedback
+REDUCTION = 10.0              # at least 10× less wave-frequency force than raw feedback
 STATION_RMS_BOUND_M = 0.05    # LF position error RMS after engagement (measured 0.033 m)
 # maximum, engagement transient included: the vessel drifts with the current for the 20 s before DP
 # engages (measured 0.133 m, then within 0.05 m of the setpoint)

@@ -127,3 +127,44 @@ def test_the_controller_watches_the_estimate_against_the_reference() -> None:
     controller = DpController(bench_config())
     controller.step(0.0)  # standby, no estimate: nothing watched
     assert controller.deviation.position_m is None and controller.deviation.heading_rad is None
+
+
+def _drive(monitor: DeviationMonitor, t0_s: float, t1_s: float, north_of_t) -> None:
+    """10 Hz steps from t0 to t1 with the estimate ``north_of_t(t)`` [m] north of the reference."""
+    for k in range(round((t1_s - t0_s) * 10)):
+        t = t0_s + 0.1 * k
+        monitor.update(t, "auto_position", REFERENCE + np.array([north_of_t(t), 0.0, 0.0]), REFERENCE)
+
+
+def test_a_drift_off_is_alarmed_before_the_deviation_limits() -> None:
+    """The vessel accelerating away under an unbalanced force (0.01 m/s²): drift-off raised while the deviation
+    is still under the 3 m warning limit, cleared once she is brought back."""
+    monitor, alarms = _monitor()
+    _drive(monitor, 0.0, 10.0, lambda t: 0.1 * math.sin(t))  # station keeping: no alarm
+    assert alarms.active() == []
+    raised_at = None
+    for k in range(300):
+        t = 10.0 + 0.1 * k
+        monitor.update(t, "auto_position", REFERENCE + np.array([0.005 * (t - 10.0) ** 2, 0.0, 0.0]), REFERENCE)
+        if alarms.is_active("position.drift_off") and raised_at is None:
+            raised_at = t
+    assert raised_at is not None
+    assert 0.005 * (raised_at - 10.0) ** 2 < 3.0  # before the warning limit
+    assert not alarms.is_active("position.deviation.warning") or raised_at < min(
+        a.since_t_s for a in alarms.active() if a.code == "position.deviation.warning")
+    _drive(monitor, 40.0, 60.0, lambda t: max(4.5 - 0.5 * (t - 40.0), 0.0))  # brought back
+    assert not alarms.is_active("position.drift_off")
+
+
+def test_a_step_or_a_steady_offset_is_no_drift_off() -> None:
+    monitor, alarms = _monitor()
+    _drive(monitor, 0.0, 30.0, lambda t: 2.0 if t >= 5.0 else 0.0)  # a 2 m step (a set-point change)
+    _drive(monitor, 30.0, 60.0, lambda t: 2.0 + 0.01 * (t - 30.0))  # a slow, steady creep (no acceleration)
+    assert not alarms.is_active("position.drift_off")
+    assert all(e.code != "position.drift_off" for e in alarms.drain_events())
+
+
+def test_no_drift_off_alarm_when_disabled() -> None:
+    monitor, alarms = _monitor(drift_off_horizon_s=0.0)
+    _drive(monitor, 0.0, 30.0, lambda t: 0.005 * t * t)
+    assert not alarms.is_active("position.drift_off")

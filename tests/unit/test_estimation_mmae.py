@@ -1,4 +1,4 @@
-"""MMAE wave filter acceptance tests (issue 3): seed 000 reproduction, a JONSWAP sea, the docs/design.md §5
+"""MMAE wave filter acceptance tests: seed 000 reproduction, a JONSWAP sea, the docs/design.md §5
 trap, and seed 001's sea-state changes."""
 
 from __future__ import annotations

@@ -107,15 +107,70 @@ def test_jump_is_rejected_at_once_with_the_minimum_limit() -> None:
 
 
 def test_all_references_rejected_for_long_resets_on_them() -> None:
-    hub, alarms = _hub(reject_persist_s=3.0)
+    # two references agreeing with each other: the estimate is what is wrong, after reject_persist_s
+    hub, alarms = _hub(n_position=2, reject_persist_s=3.0)
     scene = Scene(hub)
     scene.step(10)
-    scene.position_error["gnss1"] = (20.0, 0.0)  # the estimate (prediction at origin) is what is wrong
-    reset_seen = False
+    scene.position_error["gnss1"] = scene.position_error["gnss2"] = (20.0, 0.0)
+    reset_at = None
     for _ in range(60):
         scene.step()
-        reset_seen = reset_seen or hub._out.position_reset
-    assert reset_seen and alarms.is_active("estimator.reset")
+        if hub._out.position_reset and reset_at is None:
+            reset_at = scene.t
+    assert reset_at is not None and 3.0 <= reset_at - 1.0 <= 3.0 + 2 * DT
+    assert alarms.is_active("estimator.reset")
+
+
+def test_a_lone_reference_that_jumps_is_not_taken_for_the_truth_before_its_accept_time() -> None:
+    # one GNSS jumps 20 m: nothing confirms it; rejected, dead reckoning, alarm; taken after the accept time
+    hub, alarms = _hub(reject_persist_s=3.0, single_reference_accept_s=20.0)
+    scene = Scene(hub)
+    scene.step(10)
+    scene.position_error["gnss1"] = (20.0, 0.0)
+    reset_at = None
+    for _ in range(300):
+        scene.step()
+        if scene.t < 1.0 + 20.0 - 1e-9:
+            assert (not hub._out.position_reset and not hub._out.position_available) or scene.t < 1.0 + 6 * DT
+        if scene.t > 1.0 + 3.0 + 2 * DT and reset_at is None and not hub._out.position_reset:
+            assert alarms.is_active("position.reference_rejected")
+        if hub._out.position_reset and reset_at is None:
+            reset_at = scene.t
+    assert reset_at is not None and 20.0 <= reset_at - 1.0 <= 20.0 + 2 * DT
+    # cleared by the reset (raised again after: this scene's prediction stays at the origin)
+    assert any(e.code == "position.reference_rejected" and not e.raised and abs(e.t_s - reset_at) < 1e-9
+               for e in alarms.drain_events())
+
+
+def test_the_operator_accepts_a_lone_reference_at_once() -> None:
+    hub, alarms = _hub(reject_persist_s=3.0, single_reference_accept_s=600.0)
+    scene = Scene(hub)
+    scene.step(10)
+    scene.position_error["gnss1"] = (20.0, 0.0)
+    scene.step(50)
+    assert alarms.is_active("position.reference_rejected") and not hub._out.position_available
+    assert hub.accept_reference("gnss1") and not hub.accept_reference("gnss9")
+    scene.step(1)
+    assert hub._out.position_reset and hub._out.position_available
+    assert "operator accepted gnss1" in next(a.text for a in alarms.active() if a.code == "estimator.reset")
+
+
+def test_a_repeated_value_is_no_new_sample() -> None:
+    # a GNSS repeating its last fix: no new measurement from the first repeat (the estimator predicts), the
+    # reference alive until it is declared frozen after the freeze window
+    hub, alarms = _hub(freeze_window_s=5.0)
+    scene = Scene(hub)
+    scene.step(20)
+    scene.frozen["gnss1"] = Measurement(0.0, "gnss1", _fix(0.3, -0.2))
+    scene.step(1)
+    assert hub._out.measured[0]  # (a new value)
+    scene.step(1)
+    assert not hub._out.measured[0]  # the same again
+    scene.step(30)
+    assert hub._out.position_available and not hub._out.measured[0]
+    assert not alarms.is_active("sensor.gnss1.frozen")
+    scene.step(30)
+    assert alarms.is_active("sensor.gnss1.frozen") and not hub._out.position_available
 
 
 def test_median_test_isolates_a_drifting_reference_of_three() -> None:
@@ -326,3 +381,67 @@ def test_fusion_does_not_depend_on_the_process_string_hash() -> None:
                               capture_output=True, text=True, check=True, timeout=60).stdout.strip()
                for seed in ("1", "2", "3", "4")}
     assert len(digests) == 1
+
+
+def test_a_slow_reference_is_moved_to_the_present_with_the_estimated_velocity() -> None:
+    """A 1 Hz GNSS on a vessel moving at 1 m/s north (east 0.5 m/s): between its samples the fused position is the
+    latest sample moved by the estimated LF velocity × its age — not the sample itself, which lags up to 0.9 m
+    at the last control step before the next fix."""
+    hub = SensorHub([SensorConfig("gnss1", SensorKind.POSITION, 1.0, 0.05),
+                     SensorConfig("gyro1", SensorKind.HEADING, 10.0, math.radians(0.1))],
+                    HubConfig(), AlarmRegistry(), DATUM)
+    velocity = (1.0, 0.5, 0.0)
+    lags = []
+    for k in range(1, 101):
+        t = k * DT
+        north, east = velocity[0] * t, velocity[1] * t
+        samples = [Measurement(t, "gyro1", Heading(0.3 + 1e-3 * math.sin(t)))]
+        if k % 10 == 0:  # 1 Hz
+            samples.append(Measurement(t, "gnss1", _fix(north, east)))
+        out = hub.update(t, samples, [north, east, 0.3], [0.01, 0.01, 1e-6], velocity)
+        if k > 10:
+            assert out.position_available
+            lags.append(math.hypot(out.y_n[0] - north, out.y_n[1] - east))
+    assert max(lags) < 0.01  # [m] (a few mm of the geodetic round trip); without the propagation 0.9 × 1.12 m
+
+
+def test_a_reference_back_after_dead_reckoning_is_judged_against_a_grown_uncertainty() -> None:
+    """The GNSS is silent for 60 s and comes back 5 m from the dead-reckoned prediction: beyond the 4 m floor of
+    the prediction test with the filter's steady-state variance, within 5σ of the variance grown at 0.02 m/s
+    (σ 1.2 m after 60 s): taken back at once (blended in from the prediction), not rejected."""
+    hub, _ = _hub(dead_reckoning_drift_mps=0.02)
+    scene = Scene(hub)
+    scene.step(20)
+    scene.silent.add("gnss1")
+    scene.step(600)
+    assert not hub._out.position_available
+    scene.silent.discard("gnss1")
+    scene.position_error["gnss1"] = (5.0, 0.0)
+    scene.step(10)
+    assert hub._out.position_available and hub.state_of("gnss1") is SensorState.OK
+    assert hub._tracks["gnss1"].rejected_samples == 0
+    assert abs(hub._out.y_n[0]) < 1.0  # starts at the prediction (the origin), the 5 m faded in over switch_blend_s
+
+
+def test_without_the_growth_the_same_return_is_rejected() -> None:
+    hub, _ = _hub(dead_reckoning_drift_mps=1e-9)
+    scene = Scene(hub)
+    scene.step(20)
+    scene.silent.add("gnss1")
+    scene.step(600)
+    scene.silent.discard("gnss1")
+    scene.position_error["gnss1"] = (5.0, 0.0)
+    scene.step(10)
+    assert not hub._out.position_available and hub._tracks["gnss1"].rejected_samples > 0
+
+
+def test_a_persisting_jump_is_not_let_in_by_the_dead_reckoning_growth() -> None:
+    """A lone GNSS jumps 8 m and stays there: rejected, the loop dead-reckons, the prediction's variance grows
+    (5σ passes 8 m after ~72 s). The receiver was never absent and has not stepped back: its jump persists and
+    it stays rejected (until single_reference_accept_s), where a receiver *returning* 8 m off would be taken."""
+    hub, _ = _hub(dead_reckoning_drift_mps=0.02, single_reference_accept_s=600.0)
+    scene = Scene(hub)
+    scene.step(20)
+    scene.position_error["gnss1"] = (8.0, 0.0)
+    scene.step(900)  # 90 s
+    assert not hub._out.position_available and hub.state_of("gnss1") is SensorState.REJECTED

@@ -297,6 +297,7 @@ def test_monitor_limits_follow_replaced_readmit_time() -> None:
     command = np.zeros(2)
     monitor.update(0.0, 0.1, command)
     assert monitor._limits[2:] == (1.0, float(monitor.settings.mismatch_fraction),
+                                   float(monitor.settings.mismatch_floor_fraction),
                                    float(monitor.settings.mismatch_persist_s), 1.0)
     monitor.readmit_s = 3.0
     monitor.update(0.1, 0.1, command)
