@@ -54,7 +54,7 @@ import numpy as np
 
 from dpcontrol.models.schema import ConfigError, Section, check_number, join
 
-KINDS = ("mmae", "kf", "rpem", "raw")
+KINDS = ("mmae", "kf", "rpem", "pem", "raw")
 WF_FRAMES = ("body", "earth")
 WF_NOISE_RULES = ("equal_intensity", "equal_variance")
 WEIGHTINGS = ("dwsg", "bayes")
@@ -88,11 +88,12 @@ class WaveFilterConfig:
         M and D of the vessel (``VesselData.mass_matrix`` / ``damping_matrix``).
     sample_time_s : float
         Control period the filters are designed for [s].
-    kind : {"mmae", "kf", "rpem", "raw"}
+    kind : {"mmae", "kf", "rpem", "pem", "raw"}
         Bank of steady-state filters / one filter at a fixed ω0 / RPEM adaptive-frequency filter /
+        one filter whose wave model is re-identified in batches (seed 002 eqs. (46)–(50)) /
         LF model without wave states (wave filter off, seed 002 Fig. 7).
     omegas_rad_s : tuple of float
-        mmae: the bank's peak frequencies; kf: one value; rpem: the initial ω0; raw: ignored [rad/s].
+        mmae: the bank's peak frequencies; kf: one value; rpem, pem: the initial ω0; raw: ignored [rad/s].
     zeta : float
         WF relative damping ζ of every model [-].
     bias_time_constants_s : (Tx, Ty, Tψ) or None
@@ -149,6 +150,19 @@ class WaveFilterConfig:
         Projection range of the RPEM ω0 estimate [rad/s].
     rpem_initial_variance : float or None
         Initial P of the RPEM recursion [(rad/s)²] (None: (0.3·ω0)²·(1 − λ_rpem)).
+    pem_interval_s : float
+        pem: time between batch identifications [s] (seed 002: 20 min, the sea's stationarity time).
+    pem_window_s : float
+        pem: length of the record each identification uses [s].
+    pem_first_s : float
+        pem: record length before the first identification [s] (until then the initial ω0, ζ).
+    pem_identify_zeta : bool
+        pem: identify ζ with ω0 (seed 002 eq. (48)); false keeps ``zeta`` (seed 002's alternative).
+    pem_zeta_min, pem_zeta_max : float
+        pem: search range of ζ [-].
+    pem_wf_std_floor : float
+        pem: the identified σ_wf is kept ≥ this fraction of the rule's σ_wf (a calm record must not switch the
+        wave model off). The ω0 search range is ``[rpem_omega_min_rad_s, rpem_omega_max_rad_s]``.
     """
 
     mass_matrix: np.ndarray
@@ -185,6 +199,13 @@ class WaveFilterConfig:
     rpem_omega_min_rad_s: float = 0.2
     rpem_omega_max_rad_s: float = 2.0
     rpem_initial_variance: float | None = None
+    pem_interval_s: float = 1200.0
+    pem_window_s: float = 1200.0
+    pem_first_s: float = 300.0
+    pem_identify_zeta: bool = True
+    pem_zeta_min: float = 0.05
+    pem_zeta_max: float = 0.5
+    pem_wf_std_floor: float = 0.05
 
     def __post_init__(self) -> None:
         M = np.array(self.mass_matrix, dtype=float)
@@ -206,10 +227,10 @@ class WaveFilterConfig:
             raise ConfigError("kind", "one of " + ", ".join(KINDS), self.kind)
         omegas = _tuple_of(self.omegas_rad_s, None, "omegas_rad_s", positive=True)
         object.__setattr__(self, "omegas_rad_s", omegas)
-        needed = {"mmae": 1, "kf": 1, "rpem": 1, "raw": 0}[self.kind]
-        if len(omegas) < needed or (self.kind in ("kf", "rpem") and len(omegas) != 1):
+        needed = {"mmae": 1, "kf": 1, "rpem": 1, "pem": 1, "raw": 0}[self.kind]
+        if len(omegas) < needed or (self.kind in ("kf", "rpem", "pem") and len(omegas) != 1):
             raise ConfigError("omegas_rad_s", f"exactly one frequency for kind {self.kind}"
-                              if self.kind in ("kf", "rpem") else "at least one frequency", list(omegas))
+                              if self.kind in ("kf", "rpem", "pem") else "at least one frequency", list(omegas))
         if self.kind == "mmae" and len(set(omegas)) != len(omegas):
             raise ConfigError("omegas_rad_s", "distinct frequencies", list(omegas))
         check_number(self.zeta, "zeta", minimum=0.0, exclusive_minimum=True, maximum=1.0)
@@ -262,8 +283,19 @@ class WaveFilterConfig:
         check_number(self.rpem_omega_min_rad_s, "rpem_omega_min_rad_s", minimum=0.0, exclusive_minimum=True)
         check_number(self.rpem_omega_max_rad_s, "rpem_omega_max_rad_s", minimum=self.rpem_omega_min_rad_s,
                      exclusive_minimum=True)
-        if self.kind == "rpem" and self.zeta >= 1.0:
-            raise ConfigError("zeta", "ζ < 1 for kind rpem (underdamped WF model)", self.zeta)
+        if self.kind in ("rpem", "pem") and self.zeta >= 1.0:
+            raise ConfigError("zeta", f"ζ < 1 for kind {self.kind} (underdamped WF model)", self.zeta)
+        for name in ("pem_interval_s", "pem_window_s", "pem_first_s"):
+            check_number(getattr(self, name), name, minimum=0.0, exclusive_minimum=True, maximum=86400.0)
+        if not isinstance(self.pem_identify_zeta, bool):
+            raise ConfigError("pem_identify_zeta", "true or false", self.pem_identify_zeta)
+        check_number(self.pem_zeta_min, "pem_zeta_min", minimum=0.0, exclusive_minimum=True, maximum=0.9)
+        check_number(self.pem_zeta_max, "pem_zeta_max", minimum=self.pem_zeta_min, exclusive_minimum=True,
+                     maximum=0.95)
+        check_number(self.pem_wf_std_floor, "pem_wf_std_floor", minimum=0.0, exclusive_minimum=True, maximum=1.0)
+        if self.kind == "pem" and not self.rpem_omega_min_rad_s <= omegas[0] <= self.rpem_omega_max_rad_s:
+            raise ConfigError("omegas_rad_s", f"an initial ω0 in [{self.rpem_omega_min_rad_s:g}, "
+                              f"{self.rpem_omega_max_rad_s:g}] rad/s", omegas[0])
         if self.kind == "rpem" and not self.rpem_omega_min_rad_s <= omegas[0] <= self.rpem_omega_max_rad_s:
             raise ConfigError("omegas_rad_s", f"an initial ω0 in [{self.rpem_omega_min_rad_s:g}, "
                               f"{self.rpem_omega_max_rad_s:g}] rad/s", omegas[0])
