@@ -103,6 +103,13 @@ def estimator_section(kind: str, vessel: str) -> dict[str, Any]:
         return {"kind": "mmae", "omegas_rad_s": grid or DEFAULT_GRID}
     if kind == "pem":
         return {"kind": "pem"}
+    if kind == "raw":
+        # the baseline stays what it was before the wave filter's rule changed (LF velocity noise 0.002·√(gL),
+        # bias drift 100 s): the measure must not move when the filter's tuning does
+        length = vessel_from_config(config["vessel"]).length_m
+        return {"kind": "raw", "lf_velocity_std_mps": 0.002 * math.sqrt(9.81 * length),
+                "lf_yaw_rate_std_radps": 0.002 * math.sqrt(9.81 / length), "bias_drift_time_s": 100.0,
+                "wf_heading_std_rad": math.radians(0.5)}
     return {"kind": kind}
 
 

@@ -12,21 +12,30 @@ All defaults scale with the vessel length L (``length_m``, or estimated from the
 damping matrices, so one rule serves a 1.3 m model (CyberShip II) and a 260 m tanker:
 
 * WF motion (seed 002 eq. (27)): standard deviation ``σ_wf = 0.01·L`` in surge/sway and 0.5° in
-  yaw, the motion of a moderate sea. ``wf_noise_rule = "equal_variance"`` (default): each model of
-  the bank gets the intensity ``q1 = 4ζ·ω0·σ_wf²``, so every model expects the same WF motion
-  variance and the models differ only in spectral shape — one of the two remedies for the MMAE trap
-  of DESIGN.md §5 (the other, the common error scale, is ``likelihood_scale``); on the seed 001
-  sea-state sequence it tracks the moderate sea more reliably than the alternative.
+  yaw, the motion of a moderate sea. A model that expects less WF motion than the sea gives hands the excess
+  to the LF estimate and the bias (docs/wave-filter.md); seed 002 estimates Q1 from data, and ``kind="pem"``
+  does (seed 002 eqs. (46)–(50)), with this rule as the floor.
+  ``wf_noise_rule = "equal_variance"`` (default): each model of the bank gets the intensity
+  ``q1 = 4ζ·ω0·σ_wf²``, so every model expects the same WF motion variance and the models differ only in
+  spectral shape — one of the two remedies for the MMAE trap of DESIGN.md §5 (the other, the common error
+  scale, is ``likelihood_scale``); on the seed 001 sea-state sequence it tracks the moderate sea more
+  reliably than the alternative.
   ``"equal_intensity"`` (seed 000): one intensity ``q1 = 4ζ·ω_ref·σ_wf²`` for all models (σ_wf at the
   reference frequency ω_ref, geometric mean of the grid), so lower-frequency models expect more WF
   motion (variance ∝ 1/ω0).
 * LF velocity noise w2: a force white noise that alone would make the first-order velocity dynamics
   ``M_ii ν̇ + D_ii ν = w`` wander with standard deviation σ_ν: ``Q2_ii = 2·M_ii·D_ii·σ_ν²`` with
-  ``σ_ν = 0.002·√(gL)`` [m/s] in surge/sway and ``0.002·√(g/L)`` [rad/s] in yaw.
+  ``σ_ν = 0.001·√(gL)`` [m/s] in surge/sway (``0.002·√(gL)`` without wave states, ``kind="raw"``, whose LF
+  model must follow the wave motion too) and ``0.002·√(g/L)`` [rad/s] in yaw. Seed 002: "the entries of Q2
+  are taken as a fraction of the variance of the position measurement noises" — small; the LF velocity's
+  wave-band content is what a PID's derivative action turns into thrust (docs/wave-filter.md).
 * Bias w3 (seed 002 eq. (33) / seed 001 eq. (35)): the slowly varying environmental force is
   expected to be of size ``σ_b = D̄·v_c`` with ``v_c = 0.02·√(gL)`` (a current of that speed; D̄ the
   mean of D11 and D22; yaw: ``D33·v_c/L``). Random walk: ``Q3 = σ_b²/T_drift`` (the bias can
-  change by σ_b in ``bias_drift_time_s``); Markov with time constant T: ``Q3 = 2σ_b²/T``
+  change by σ_b in ``bias_drift_time_s`` = 1000 s in surge/sway, the time scale of mean current and wind
+  changes — a bias that may move within 100 s follows the wave groups, and a PID with bias feed-forward
+  passes that to the thrusters — and ``bias_yaw_drift_time_s`` = 100 s in yaw, whose mean wave and wind
+  moment changes with every heading change); Markov with time constant T: ``Q3 = 2σ_b²/T``
   (stationary standard deviation σ_b). Surge and sway share one value so the model is invariant
   to the vessel-parallel rotation.
 * Measurement noise: ``σ_pos = 0.002·L`` (GNSS/DGNSS at full scale), heading 0.1° (gyro).
@@ -113,8 +122,8 @@ class WaveFilterConfig:
         σ_ν of the LF velocity noise rule [m/s], [rad/s].
     bias_force_std_n, bias_moment_std_nm : float or None
         σ_b of the bias rule [N], [N·m].
-    bias_drift_time_s : float
-        T_drift of the random-walk bias rule [s].
+    bias_drift_time_s, bias_yaw_drift_time_s : float
+        T_drift of the random-walk bias rule in surge/sway and in yaw [s].
     process_noise_intensity : tuple of 9 float or None
         Explicit ``diag(Q1, Q2, Q3)``; overrides the four rules above.
     position_noise_std_m, heading_noise_std_rad : float or None
@@ -182,7 +191,8 @@ class WaveFilterConfig:
     lf_yaw_rate_std_radps: float | None = None
     bias_force_std_n: float | None = None
     bias_moment_std_nm: float | None = None
-    bias_drift_time_s: float = 100.0
+    bias_drift_time_s: float = 1000.0
+    bias_yaw_drift_time_s: float = 100.0
     process_noise_intensity: tuple[float, ...] | None = None
     position_noise_std_m: float | None = None
     heading_noise_std_rad: float | None = None
@@ -203,9 +213,9 @@ class WaveFilterConfig:
     pem_window_s: float = 1200.0
     pem_first_s: float = 300.0
     pem_identify_zeta: bool = True
-    pem_zeta_min: float = 0.05
+    pem_zeta_min: float = 0.1
     pem_zeta_max: float = 0.5
-    pem_wf_std_floor: float = 0.05
+    pem_wf_std_floor: float = 1.0
 
     def __post_init__(self) -> None:
         M = np.array(self.mass_matrix, dtype=float)
@@ -255,6 +265,7 @@ class WaveFilterConfig:
             if value is not None:
                 check_number(value, name, minimum=0.0, exclusive_minimum=True)
         check_number(self.bias_drift_time_s, "bias_drift_time_s", minimum=0.0, exclusive_minimum=True)
+        check_number(self.bias_yaw_drift_time_s, "bias_yaw_drift_time_s", minimum=0.0, exclusive_minimum=True)
         if self.process_noise_intensity is not None:
             object.__setattr__(self, "process_noise_intensity",
                                _tuple_of(self.process_noise_intensity, 9, "process_noise_intensity",
@@ -336,7 +347,9 @@ class WaveFilterConfig:
         if self.process_noise_intensity is not None:
             return np.array(self.process_noise_intensity[3:6])
         L = self.length_scale_m
-        v = self.lf_velocity_std_mps if self.lf_velocity_std_mps is not None else 0.002 * math.sqrt(_GRAVITY_MPS2 * L)
+        # without wave states (raw) the LF model must follow the wave motion too: the former, faster rule
+        factor = 0.002 if self.kind == "raw" else 0.001
+        v = self.lf_velocity_std_mps if self.lf_velocity_std_mps is not None else factor * math.sqrt(_GRAVITY_MPS2 * L)
         r = (self.lf_yaw_rate_std_radps if self.lf_yaw_rate_std_radps is not None
              else 0.002 * math.sqrt(_GRAVITY_MPS2 / L))
         return 2.0 * np.diag(self.mass_matrix) * np.diag(self.damping_matrix) * np.array([v, v, r]) ** 2
@@ -355,7 +368,8 @@ class WaveFilterConfig:
         if self.process_noise_intensity is not None:
             return np.array(self.process_noise_intensity[6:9])
         if self.bias_time_constants_s is None:
-            return self.bias_std() ** 2 / self.bias_drift_time_s
+            drift = self.bias_drift_time_s
+            return self.bias_std() ** 2 / np.array([drift, drift, self.bias_yaw_drift_time_s])
         return 2.0 * self.bias_std() ** 2 / np.asarray(self.bias_time_constants_s)
 
     def likelihood_band(self) -> tuple[float, float]:

@@ -21,8 +21,8 @@ their 3×3 sample covariance, minimised over (log ω0, ζ, reflection coefficien
 
 The data are the measured position (body axes: the WF model of seed 001 eq. (34) is body-fixed) and heading
 minus the running filter's LF estimate — the detrending of the paper, by the LF model instead of a first-order
-high-pass — low-pass filtered and decimated to ≈ 0.25 s (:func:`scipy.signal.decimate`, zero phase), so a
-20-min record is ≈ 4800 samples whatever the control rate.
+high-pass — low-pass filtered and decimated to ≈ 0.5 s (:func:`scipy.signal.decimate`, zero phase), so a
+20-min record is ≈ 2400 samples whatever the control rate.
 
 :class:`PemWaveFilter` (``kind="pem"``) is the steady-state Kalman filter of
 :class:`~dpcontrol.estimation.wave_filter.BankWaveFilter` at the current (ω̂0, ζ̂, σ̂_wf), rebuilt after each
@@ -44,8 +44,8 @@ from dpcontrol.estimation.config import WaveFilterConfig
 from dpcontrol.estimation.wave_filter import BankWaveFilter, WaveFilterOutput
 from dpcontrol.models.frames import ssa
 
-#: target sample time of the identification data [s] (wave periods ≥ 3 s: ≥ 12 samples a period)
-IDENTIFICATION_SAMPLE_TIME_S = 0.25
+#: target sample time of the identification data [s] (wave periods ≥ 3 s: ≥ 6 samples a period)
+IDENTIFICATION_SAMPLE_TIME_S = 0.5
 _MIN_SAMPLES = 256
 
 
@@ -115,7 +115,8 @@ def identify_wave_model(residual: np.ndarray, sample_time_s: float, *, omega_ran
     Returns
     -------
     WaveModelEstimate or None
-        None when the data do not carry a wave record (too short, or no channel with data).
+        None when the data do not carry a wave record: too short, or no channel whose variance is at least
+        twice its measurement noise's (after the decimation's low-pass).
     """
     data = np.asarray(residual, dtype=float)
     if data.ndim != 2 or data.shape[1] != 3:
@@ -136,6 +137,8 @@ def identify_wave_model(residual: np.ndarray, sample_time_s: float, *, omega_ran
         x = x - x.mean()
         if not np.any(x):
             continue
+        if noise_var is not None and float(np.var(x)) < 2.0 * float(noise_var[j]) / factor:
+            continue        # the channel's wave motion is below its measurement noise: nothing to identify
         channels.append(j)
         series.append(x)
     if not series:
