@@ -322,6 +322,10 @@ def _control_panel(state: MonitorState) -> Panel:
     for key, label in (("tau_b", "commanded τ"), ("tau_achieved_b", "achieved"), ("shortfall_b", "shortfall")):
         force = _get(control, key)
         _row(table, label, *(_fmt(_get(force, k), ".1f", 1e-3) for k in ("x_n", "y_n", "n_nm")))
+    wave = _get(state.message("status"), "wave_band")   # how much wave motion reaches the controller
+    if isinstance(wave, Mapping):
+        _row(table, "wave-band std", _fmt(_get(wave, "force_n"), ".2f", 1e-3), "(X, Y)",
+             _fmt(_get(wave, "moment_nm"), ".2f", 1e-3))
     mrac = _get(control, "mrac")
     if isinstance(mrac, Mapping):
         mass, damping = _get(mrac, "mass"), _get(mrac, "damping")

@@ -32,8 +32,9 @@ damping matrices, so one rule serves a 1.3 m model (CyberShip II) and a 260 m ta
 * Bias w3 (seed 002 eq. (33) / seed 001 eq. (35)): the slowly varying environmental force is
   expected to be of size ``σ_b = D̄·v_c`` with ``v_c = 0.02·√(gL)`` (a current of that speed; D̄ the
   mean of D11 and D22; yaw: ``D33·v_c/L``). Random walk: ``Q3 = σ_b²/T_drift`` (the bias can
-  change by σ_b in ``bias_drift_time_s`` = 1000 s in surge/sway, the time scale of mean current and wind
-  changes — a bias that may move within 100 s follows the wave groups, and a PID with bias feed-forward
+  change by σ_b in ``bias_drift_time_s`` = ``360·√(L/g)`` in surge/sway — 1000 s for the 76 m supply
+  vessel, Froude scaled like every time of the rule (128 s for CyberShip II): the time scale of mean current
+  and wind changes — a bias that may move within 100 s follows the wave groups, and a PID with bias feed-forward
   passes that to the thrusters — and ``bias_yaw_drift_time_s`` = 100 s in yaw, whose mean wave and wind
   moment changes with every heading change); Markov with time constant T: ``Q3 = 2σ_b²/T``
   (stationary standard deviation σ_b). Surge and sway share one value so the model is invariant
@@ -123,7 +124,7 @@ class WaveFilterConfig:
     bias_force_std_n, bias_moment_std_nm : float or None
         σ_b of the bias rule [N], [N·m].
     bias_drift_time_s, bias_yaw_drift_time_s : float
-        T_drift of the random-walk bias rule in surge/sway and in yaw [s].
+        T_drift of the random-walk bias rule in surge/sway (None: ``360·√(L/g)``) and in yaw [s].
     process_noise_intensity : tuple of 9 float or None
         Explicit ``diag(Q1, Q2, Q3)``; overrides the four rules above.
     position_noise_std_m, heading_noise_std_rad : float or None
@@ -191,7 +192,7 @@ class WaveFilterConfig:
     lf_yaw_rate_std_radps: float | None = None
     bias_force_std_n: float | None = None
     bias_moment_std_nm: float | None = None
-    bias_drift_time_s: float = 1000.0
+    bias_drift_time_s: float | None = None
     bias_yaw_drift_time_s: float = 100.0
     process_noise_intensity: tuple[float, ...] | None = None
     position_noise_std_m: float | None = None
@@ -264,7 +265,8 @@ class WaveFilterConfig:
             value = getattr(self, name)
             if value is not None:
                 check_number(value, name, minimum=0.0, exclusive_minimum=True)
-        check_number(self.bias_drift_time_s, "bias_drift_time_s", minimum=0.0, exclusive_minimum=True)
+        if self.bias_drift_time_s is not None:
+            check_number(self.bias_drift_time_s, "bias_drift_time_s", minimum=0.0, exclusive_minimum=True)
         check_number(self.bias_yaw_drift_time_s, "bias_yaw_drift_time_s", minimum=0.0, exclusive_minimum=True)
         if self.process_noise_intensity is not None:
             object.__setattr__(self, "process_noise_intensity",
@@ -363,12 +365,18 @@ class WaveFilterConfig:
         moment = self.bias_moment_std_nm if self.bias_moment_std_nm is not None else D[2, 2] * v_c / L
         return np.array([force, force, moment])
 
+    def bias_drift_time(self) -> float:
+        """T_drift of the surge/sway bias [s]: ``bias_drift_time_s`` or ``360·√(L/g)`` (Froude scaled)."""
+        if self.bias_drift_time_s is not None:
+            return float(self.bias_drift_time_s)
+        return 360.0 * math.sqrt(self.length_scale_m / _GRAVITY_MPS2)
+
     def bias_intensity(self) -> np.ndarray:
         """Q3 (3,) [N²/s, N²/s, N²·m²/s]."""
         if self.process_noise_intensity is not None:
             return np.array(self.process_noise_intensity[6:9])
         if self.bias_time_constants_s is None:
-            drift = self.bias_drift_time_s
+            drift = self.bias_drift_time()
             return self.bias_std() ** 2 / np.array([drift, drift, self.bias_yaw_drift_time_s])
         return 2.0 * self.bias_std() ** 2 / np.asarray(self.bias_time_constants_s)
 
