@@ -26,6 +26,7 @@ Usage::
 
     nice -n 10 .venv/bin/python benchmarks/wave_filter_campaign.py --seeds 0 1 --vessels supply
     nice -n 10 .venv/bin/python benchmarks/wave_filter_campaign.py --seeds $(seq 0 29) --json out.json
+    .venv/bin/python benchmarks/wave_filter_campaign.py --summarise out.json      # the table of what ran
 
 Every line printed is one run; the summary at the end gives, per vessel and estimator, the share of runs with
 ≥ 10× (horizontal and yaw), the median ratios, the share with LF content ≤ 10 %, and the ω̂ hits.
@@ -226,10 +227,16 @@ def main() -> int:
     parser.add_argument("--options", type=json.loads, help="estimator options added to every filtered run (JSON)")
     parser.add_argument("--control", type=json.loads, help="a control section replacing the example's PID (JSON)")
     parser.add_argument("--json", type=Path, help="write every run's figures here")
+    parser.add_argument("--summarise", type=Path, help="only print the summary of a --json file")
     args = parser.parse_args()
+    if args.summarise:
+        rows = json.loads(args.summarise.read_text(encoding="utf-8"))
+        summarise(rows, list(dict.fromkeys(r["estimator"] for r in rows)))
+        return 0
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     rows: list[dict[str, Any]] = []
-    print("vessel          seed estimator  ωm     ω̂      F_wf        N_wf        LF%    LFψ%   err[m]  cpu[s]")
+    print("vessel          seed estimator  ωm     ω̂      F_wf        N_wf        LF%    LFψ%   err[m]  cpu[s]",
+          flush=True)
     for seed in args.seeds:
         for vessel in args.vessels:
             for kind in args.estimators:
@@ -239,9 +246,9 @@ def main() -> int:
                       f"{r['force_wf']:10.4g}  {r['yaw_wf']:10.4g}  {100 * r['lf_wf_fraction']:5.1f}  "
                       f"{100 * r['lf_heading_wf_fraction']:5.1f}  {r['lf_error_rms_m']:.3g}  {r['cpu_s']:.0f}",
                       flush=True)
+                if args.json:   # after every run: an interrupted campaign keeps what ran (--summarise reads it)
+                    args.json.write_text(json.dumps(rows, indent=1), encoding="utf-8")
     summarise(rows, args.estimators)
-    if args.json:
-        args.json.write_text(json.dumps(rows, indent=1), encoding="utf-8")
     return 0
 
 
