@@ -6,10 +6,11 @@ each, so the status and the record can say, at any time, how large the wave-freq
 controller commands (and of what it is fed) is: a wave filter doing its job keeps both small (seed 002 Fig. 7:
 the thrusters should not work against every wave).
 
-The band-pass is a 2nd-order Butterworth band-pass (``scipy.signal.butter``, designed once) over
-``[ω_low, ω_high]`` — by default half the lowest model frequency to twice the highest, what the campaign
-benchmark measures offline with a Welch PSD — run as one transposed direct-form-II biquad on all six signals at
-once; the mean square has the time constant ``averaging_time_s`` (default ten periods of the lowest band edge).
+The band-pass is a 2nd-order Butterworth band-pass (``scipy.signal.butter``) over ``[ω_low, ω_high]``: the
+configured band until the estimator has a peak frequency ω̂, then ``[ω̂/2, 3ω̂]`` (:meth:`follow_peak`, what the
+campaign benchmark measures offline with a Welch PSD around the motion's peak), run as one transposed
+direct-form-II biquad on all six signals at once; the mean square has the time constant ``averaging_time_s``
+(default ten periods of the lowest band edge).
 No clock: one :meth:`update` per control period.
 """
 
@@ -46,10 +47,8 @@ class WaveBandMeter:
         high = min(high, 0.95 * nyquist)
         if low >= high:
             raise ValueError(f"wave band {band_rad_s} rad/s is not below the Nyquist frequency {nyquist:g} rad/s")
-        b, a = butter(1, [low / nyquist, high / nyquist], btype="bandpass")   # 2nd order: one biquad
-        self.band_rad_s = (low, high)
-        self._b = [float(v) for v in b]
-        self._a = [float(v) for v in a]
+        self._nyquist = nyquist
+        self._design(low, high)
         tau = averaging_time_s if averaging_time_s is not None else 10.0 * 2.0 * math.pi / low
         self._alpha = 1.0 - math.exp(-sample_time_s / tau)
         self._z1 = np.zeros(6)
@@ -59,6 +58,24 @@ class WaveBandMeter:
         self._mean_square = np.zeros(6)
         self._unwrap_heading: float | None = None
         self.steps = 0
+
+    def _design(self, low: float, high: float) -> None:
+        b, a = butter(1, [low / self._nyquist, high / self._nyquist], btype="bandpass")   # 2nd order: one biquad
+        self.band_rad_s = (low, high)
+        self._b = [float(v) for v in b]
+        self._a = [float(v) for v in a]
+
+    def follow_peak(self, omega_rad_s: float | None) -> None:
+        """Centre the band on the estimator's peak frequency: ``[ω̂/2, 3ω̂]`` (the campaign's band), redesigned
+        only when ω̂ moved by more than 10 % from the band's (the filter state is kept)."""
+        if omega_rad_s is None or not math.isfinite(omega_rad_s) or omega_rad_s <= 0.0:
+            return
+        low = 0.5 * omega_rad_s
+        if abs(low / self.band_rad_s[0] - 1.0) <= 0.1:
+            return
+        high = min(3.0 * omega_rad_s, 0.95 * self._nyquist)
+        if low < high:
+            self._design(low, high)
 
     def reset(self) -> None:
         """Forget everything (a new engagement: its transient is no wave motion)."""

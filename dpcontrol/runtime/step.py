@@ -438,6 +438,7 @@ class DpController:
                 if meter.steps:
                     meter.reset()
             else:
+                meter.follow_peak(out.estimate.omega_hat_rad_s)
                 meter.update(tau, out.estimate.eta_hat_n)
         t3 = clock() if clock else 0.0
 
