@@ -107,11 +107,18 @@ def estimator_section(kind: str, vessel: str) -> dict[str, Any]:
     if kind == "raw":
         # the baseline stays what it was before the wave filter's rule changed (LF velocity noise 0.002·√(gL),
         # bias drift 100 s): the measure must not move when the filter's tuning does
-        length = vessel_from_config(config["vessel"]).length_m
-        return {"kind": "raw", "lf_velocity_std_mps": 0.002 * math.sqrt(9.81 * length),
-                "lf_yaw_rate_std_radps": 0.002 * math.sqrt(9.81 / length), "bias_drift_time_s": 100.0,
-                "wf_heading_std_rad": math.radians(0.5)}
+        return {"kind": "raw", **former_rule(vessel)}
     return {"kind": kind}
+
+
+def former_rule(vessel: str) -> dict[str, float]:
+    """The LF process-noise rule of the wave filters before docs/wave-filter.md's changes (for ``raw`` and
+    ``--former-rule``)."""
+    config = yaml.safe_load((ROOT / "deploy" / "config" / VESSELS[vessel][1]).read_text(encoding="utf-8"))
+    length = vessel_from_config(config["vessel"]).length_m
+    return {"lf_velocity_std_mps": 0.002 * math.sqrt(9.81 * length),
+            "lf_yaw_rate_std_radps": 0.002 * math.sqrt(9.81 / length), "bias_drift_time_s": 100.0,
+            "bias_yaw_drift_time_s": 100.0, "wf_heading_std_rad": math.radians(0.5)}
 
 
 def band_std(x: np.ndarray, dt_s: float, low_rad_s: float, high_rad_s: float) -> float:
@@ -125,7 +132,8 @@ def band_std(x: np.ndarray, dt_s: float, low_rad_s: float, high_rad_s: float) ->
 
 
 def run_one(vessel: str, seed: int, kind: str, duration_s: float, settle_s: float, *,
-            options: dict[str, Any] | None = None, control: dict[str, Any] | None = None) -> dict[str, Any]:
+            options: dict[str, Any] | None = None, control: dict[str, Any] | None = None, former: bool = False
+            ) -> dict[str, Any]:
     """One run; the measured figures (see the module docstring)."""
     base = yaml.safe_load((ROOT / "sim_plant" / "scenarios" / VESSELS[vessel][0]).read_text(encoding="utf-8"))
     length = vessel_from_config(base["vessel"]).length_m
@@ -135,6 +143,8 @@ def run_one(vessel: str, seed: int, kind: str, duration_s: float, settle_s: floa
                         **random_sea(vessel, seed, length))
     scenario = parse_scenario(scenario_map, file=f"<campaign {vessel} {seed}>")
     estimator = estimator_section(kind, vessel)
+    if former and kind != "raw":
+        estimator.update(former_rule(vessel))
     if options and kind != "raw":
         estimator.update(options)
     overrides = controller_sections(vessel, estimator, control)
@@ -227,6 +237,8 @@ def main() -> int:
     parser.add_argument("--options", type=json.loads, help="estimator options added to every filtered run (JSON)")
     parser.add_argument("--control", type=json.loads, help="a control section replacing the example's PID (JSON)")
     parser.add_argument("--json", type=Path, help="write every run's figures here")
+    parser.add_argument("--former-rule", action="store_true",
+                        help="filtered runs with the LF noise rule before docs/wave-filter.md (\"today\")")
     parser.add_argument("--summarise", type=Path, help="only print the summary of a --json file")
     args = parser.parse_args()
     if args.summarise:
@@ -240,7 +252,8 @@ def main() -> int:
     for seed in args.seeds:
         for vessel in args.vessels:
             for kind in args.estimators:
-                r = run_one(vessel, seed, kind, args.duration, args.settle, options=args.options, control=args.control)
+                r = run_one(vessel, seed, kind, args.duration, args.settle, options=args.options, control=args.control,
+                            former=args.former_rule)
                 rows.append(r)
                 print(f"{vessel:<15} {seed:>4} {kind:<9} {r['omega_motion_rad_s']:.3f}  {r['omega_hat_rad_s']:.3f}  "
                       f"{r['force_wf']:10.4g}  {r['yaw_wf']:10.4g}  {100 * r['lf_wf_fraction']:5.1f}  "
