@@ -372,6 +372,12 @@ def _control_panel(state: MonitorState) -> Panel:
         force = _get(control, key)
         _row(table, label, *(_fmt(_get(force, k), spec, scale)
                              for k, (_, scale, spec) in zip(("x_n", "y_n", "n_nm"), units, strict=True)))
+    wave = _get(state.message("status"), "wave_band")  # how much wave motion reaches the controller
+    if isinstance(wave, Mapping):
+        f_unit, f_scale, f_spec = _force_unit([_get(wave, "force_n")])
+        m_unit, m_scale, m_spec = _force_unit([_get(wave, "moment_nm")], "N·m")
+        _row(table, "wave-band std", f"{_fmt(_get(wave, 'force_n'), f_spec, f_scale)} {f_unit}", "(X, Y)",
+             f"{_fmt(_get(wave, 'moment_nm'), m_spec, m_scale)} {m_unit}")
     mrac = _get(control, "mrac")
     if isinstance(mrac, Mapping):
         mass, damping = _get(mrac, "mass"), _get(mrac, "damping")

@@ -216,7 +216,10 @@ _CORE_TOPICS = (
               {"eta_ref_n": _vec("reference pose [north_m, east_m, psi_rad]"),
                "nu_ref_b": _vec("reference body velocity"), "setpoint_n": _vec("target pose")}),
     TopicSpec("control", "dpcontrol.control", "Controller output: commanded generalised force and MRAC parameters.",
-              {"tau_b": _vec("commanded force [surge_n, sway_n, yaw_nm]")}),
+              {"tau_b": _vec("commanded force [surge_n, sway_n, yaw_nm]"),
+               "wave_band": {"type": ["object", "null"],
+                             "description": "wave-band std of the commanded force and the LF estimate: force_n, "
+                                            "moment_nm, lf_position_m, lf_heading_rad (null outside DP)"}}),
     TopicSpec("allocation", "dpcontrol.allocation",
               "Thrust allocation result: per-thruster thrust/azimuth, achieved force, slack, solver status.",
               {"thrust_n": _vec("thrust per thruster [N]"), "azimuth_rad": _vec("azimuth per thruster [rad]"),

@@ -12,21 +12,31 @@ All defaults scale with the vessel length L (``length_m``, or estimated from the
 damping matrices, so one rule serves a 1.3 m model (CyberShip II) and a 260 m tanker:
 
 * WF motion (seed 002 eq. (27)): standard deviation ``σ_wf = 0.01·L`` in surge/sway and 0.5° in
-  yaw, the motion of a moderate sea. ``wf_noise_rule = "equal_variance"`` (default): each model of
-  the bank gets the intensity ``q1 = 4ζ·ω0·σ_wf²``, so every model expects the same WF motion
-  variance and the models differ only in spectral shape — one of the two remedies for the MMAE trap
-  of docs/design.md §5 (the other, the common error scale, is ``likelihood_scale``); on the seed 001
-  sea-state sequence it tracks the moderate sea more reliably than the alternative.
+  yaw, the motion of a moderate sea. A model that expects less WF motion than the sea gives hands the excess
+  to the LF estimate and the bias (docs/wave-filter.md); seed 002 estimates Q1 from data, and ``kind="pem"``
+  does (seed 002 eqs. (46)–(50)), with this rule as the floor.
+  ``wf_noise_rule = "equal_variance"`` (default): each model of the bank gets the intensity
+  ``q1 = 4ζ·ω0·σ_wf²``, so every model expects the same WF motion variance and the models differ only in
+  spectral shape — one of the two remedies for the MMAE trap of docs/design.md §5 (the other, the common error
+  scale, is ``likelihood_scale``); on the seed 001 sea-state sequence it tracks the moderate sea more
+  reliably than the alternative.
   ``"equal_intensity"`` (seed 000): one intensity ``q1 = 4ζ·ω_ref·σ_wf²`` for all models (σ_wf at the
   reference frequency ω_ref, geometric mean of the grid), so lower-frequency models expect more WF
   motion (variance ∝ 1/ω0).
 * LF velocity noise w2: a force white noise that alone would make the first-order velocity dynamics
   ``M_ii ν̇ + D_ii ν = w`` wander with standard deviation σ_ν: ``Q2_ii = 2·M_ii·D_ii·σ_ν²`` with
-  ``σ_ν = 0.002·√(gL)`` [m/s] in surge/sway and ``0.002·√(g/L)`` [rad/s] in yaw.
+  ``σ_ν = 0.001·√(gL)`` [m/s] in surge/sway (``0.002·√(gL)`` without wave states, ``kind="raw"``, whose LF
+  model must follow the wave motion too) and ``0.002·√(g/L)`` [rad/s] in yaw. Seed 002: "the entries of Q2
+  are taken as a fraction of the variance of the position measurement noises" — small; the LF velocity's
+  wave-band content is what a PID's derivative action turns into thrust (docs/wave-filter.md).
 * Bias w3 (seed 002 eq. (33) / seed 001 eq. (35)): the slowly varying environmental force is
   expected to be of size ``σ_b = D̄·v_c`` with ``v_c = 0.02·√(gL)`` (a current of that speed; D̄ the
   mean of D11 and D22; yaw: ``D33·v_c/L``). Random walk: ``Q3 = σ_b²/T_drift`` (the bias can
-  change by σ_b in ``bias_drift_time_s``); Markov with time constant T: ``Q3 = 2σ_b²/T``
+  change by σ_b in ``bias_drift_time_s`` = ``360·√(L/g)`` in surge/sway — 1000 s for the 76 m supply
+  vessel, Froude scaled like every time of the rule (128 s for CyberShip II): the time scale of mean current
+  and wind changes — a bias that may move within 100 s follows the wave groups, and a PID with bias feed-forward
+  passes that to the thrusters — and ``bias_yaw_drift_time_s`` = 100 s in yaw, whose mean wave and wind
+  moment changes with every heading change); Markov with time constant T: ``Q3 = 2σ_b²/T``
   (stationary standard deviation σ_b). Surge and sway share one value so the model is invariant
   to the vessel-parallel rotation.
 * Measurement noise: ``σ_pos = 0.002·L`` (GNSS/DGNSS at full scale), heading 0.1° (gyro).
@@ -54,7 +64,7 @@ import numpy as np
 
 from dpbase.schema import ConfigError, Section, check_number, join
 
-KINDS = ("mmae", "kf", "rpem", "raw")
+KINDS = ("mmae", "kf", "rpem", "pem", "raw")
 WF_FRAMES = ("body", "earth")
 WF_NOISE_RULES = ("equal_intensity", "equal_variance")
 WEIGHTINGS = ("dwsg", "bayes")
@@ -88,11 +98,12 @@ class WaveFilterConfig:
         M and D of the vessel (``VesselData.mass_matrix`` / ``damping_matrix``).
     sample_time_s : float
         Control period the filters are designed for [s].
-    kind : {"mmae", "kf", "rpem", "raw"}
+    kind : {"mmae", "kf", "rpem", "pem", "raw"}
         Bank of steady-state filters / one filter at a fixed ω0 / RPEM adaptive-frequency filter /
+        one filter whose wave model is re-identified in batches (seed 002 eqs. (46)–(50)) /
         LF model without wave states (wave filter off, seed 002 Fig. 7).
     omegas_rad_s : tuple of float
-        mmae: the bank's peak frequencies; kf: one value; rpem: the initial ω0; raw: ignored [rad/s].
+        mmae: the bank's peak frequencies; kf: one value; rpem, pem: the initial ω0; raw: ignored [rad/s].
     zeta : float
         WF relative damping ζ of every model [-].
     bias_time_constants_s : (Tx, Ty, Tψ) or None
@@ -112,8 +123,8 @@ class WaveFilterConfig:
         σ_ν of the LF velocity noise rule [m/s], [rad/s].
     bias_force_std_n, bias_moment_std_nm : float or None
         σ_b of the bias rule [N], [N·m].
-    bias_drift_time_s : float
-        T_drift of the random-walk bias rule [s].
+    bias_drift_time_s, bias_yaw_drift_time_s : float
+        T_drift of the random-walk bias rule in surge/sway (None: ``360·√(L/g)``) and in yaw [s].
     process_noise_intensity : tuple of 9 float or None
         Explicit ``diag(Q1, Q2, Q3)``; overrides the four rules above.
     position_noise_std_m, heading_noise_std_rad : float or None
@@ -149,6 +160,19 @@ class WaveFilterConfig:
         Projection range of the RPEM ω0 estimate [rad/s].
     rpem_initial_variance : float or None
         Initial P of the RPEM recursion [(rad/s)²] (None: (0.3·ω0)²·(1 − λ_rpem)).
+    pem_interval_s : float
+        pem: time between batch identifications [s] (seed 002: 20 min, the sea's stationarity time).
+    pem_window_s : float
+        pem: length of the record each identification uses [s].
+    pem_first_s : float
+        pem: record length before the first identification [s] (until then the initial ω0, ζ).
+    pem_identify_zeta : bool
+        pem: identify ζ with ω0 (seed 002 eq. (48)); false keeps ``zeta`` (seed 002's alternative).
+    pem_zeta_min, pem_zeta_max : float
+        pem: search range of ζ [-].
+    pem_wf_std_floor : float
+        pem: the identified σ_wf is kept ≥ this fraction of the rule's σ_wf (a calm record must not switch the
+        wave model off). The ω0 search range is ``[rpem_omega_min_rad_s, rpem_omega_max_rad_s]``.
     """
 
     mass_matrix: np.ndarray
@@ -168,7 +192,8 @@ class WaveFilterConfig:
     lf_yaw_rate_std_radps: float | None = None
     bias_force_std_n: float | None = None
     bias_moment_std_nm: float | None = None
-    bias_drift_time_s: float = 100.0
+    bias_drift_time_s: float | None = None
+    bias_yaw_drift_time_s: float = 100.0
     process_noise_intensity: tuple[float, ...] | None = None
     position_noise_std_m: float | None = None
     heading_noise_std_rad: float | None = None
@@ -185,6 +210,13 @@ class WaveFilterConfig:
     rpem_omega_min_rad_s: float = 0.2
     rpem_omega_max_rad_s: float = 2.0
     rpem_initial_variance: float | None = None
+    pem_interval_s: float = 1200.0
+    pem_window_s: float = 1200.0
+    pem_first_s: float = 300.0
+    pem_identify_zeta: bool = True
+    pem_zeta_min: float = 0.1
+    pem_zeta_max: float = 0.5
+    pem_wf_std_floor: float = 1.0
 
     def __post_init__(self) -> None:
         M = np.array(self.mass_matrix, dtype=float)
@@ -206,10 +238,10 @@ class WaveFilterConfig:
             raise ConfigError("kind", "one of " + ", ".join(KINDS), self.kind)
         omegas = _tuple_of(self.omegas_rad_s, None, "omegas_rad_s", positive=True)
         object.__setattr__(self, "omegas_rad_s", omegas)
-        needed = {"mmae": 1, "kf": 1, "rpem": 1, "raw": 0}[self.kind]
-        if len(omegas) < needed or (self.kind in ("kf", "rpem") and len(omegas) != 1):
+        needed = {"mmae": 1, "kf": 1, "rpem": 1, "pem": 1, "raw": 0}[self.kind]
+        if len(omegas) < needed or (self.kind in ("kf", "rpem", "pem") and len(omegas) != 1):
             raise ConfigError("omegas_rad_s", f"exactly one frequency for kind {self.kind}"
-                              if self.kind in ("kf", "rpem") else "at least one frequency", list(omegas))
+                              if self.kind in ("kf", "rpem", "pem") else "at least one frequency", list(omegas))
         if self.kind == "mmae" and len(set(omegas)) != len(omegas):
             raise ConfigError("omegas_rad_s", "distinct frequencies", list(omegas))
         check_number(self.zeta, "zeta", minimum=0.0, exclusive_minimum=True, maximum=1.0)
@@ -233,7 +265,9 @@ class WaveFilterConfig:
             value = getattr(self, name)
             if value is not None:
                 check_number(value, name, minimum=0.0, exclusive_minimum=True)
-        check_number(self.bias_drift_time_s, "bias_drift_time_s", minimum=0.0, exclusive_minimum=True)
+        if self.bias_drift_time_s is not None:
+            check_number(self.bias_drift_time_s, "bias_drift_time_s", minimum=0.0, exclusive_minimum=True)
+        check_number(self.bias_yaw_drift_time_s, "bias_yaw_drift_time_s", minimum=0.0, exclusive_minimum=True)
         if self.process_noise_intensity is not None:
             object.__setattr__(self, "process_noise_intensity",
                                _tuple_of(self.process_noise_intensity, 9, "process_noise_intensity",
@@ -262,8 +296,19 @@ class WaveFilterConfig:
         check_number(self.rpem_omega_min_rad_s, "rpem_omega_min_rad_s", minimum=0.0, exclusive_minimum=True)
         check_number(self.rpem_omega_max_rad_s, "rpem_omega_max_rad_s", minimum=self.rpem_omega_min_rad_s,
                      exclusive_minimum=True)
-        if self.kind == "rpem" and self.zeta >= 1.0:
-            raise ConfigError("zeta", "ζ < 1 for kind rpem (underdamped WF model)", self.zeta)
+        if self.kind in ("rpem", "pem") and self.zeta >= 1.0:
+            raise ConfigError("zeta", f"ζ < 1 for kind {self.kind} (underdamped WF model)", self.zeta)
+        for name in ("pem_interval_s", "pem_window_s", "pem_first_s"):
+            check_number(getattr(self, name), name, minimum=0.0, exclusive_minimum=True, maximum=86400.0)
+        if not isinstance(self.pem_identify_zeta, bool):
+            raise ConfigError("pem_identify_zeta", "true or false", self.pem_identify_zeta)
+        check_number(self.pem_zeta_min, "pem_zeta_min", minimum=0.0, exclusive_minimum=True, maximum=0.9)
+        check_number(self.pem_zeta_max, "pem_zeta_max", minimum=self.pem_zeta_min, exclusive_minimum=True,
+                     maximum=0.95)
+        check_number(self.pem_wf_std_floor, "pem_wf_std_floor", minimum=0.0, exclusive_minimum=True, maximum=1.0)
+        if self.kind == "pem" and not self.rpem_omega_min_rad_s <= omegas[0] <= self.rpem_omega_max_rad_s:
+            raise ConfigError("omegas_rad_s", f"an initial ω0 in [{self.rpem_omega_min_rad_s:g}, "
+                              f"{self.rpem_omega_max_rad_s:g}] rad/s", omegas[0])
         if self.kind == "rpem" and not self.rpem_omega_min_rad_s <= omegas[0] <= self.rpem_omega_max_rad_s:
             raise ConfigError("omegas_rad_s", f"an initial ω0 in [{self.rpem_omega_min_rad_s:g}, "
                               f"{self.rpem_omega_max_rad_s:g}] rad/s", omegas[0])
@@ -304,7 +349,9 @@ class WaveFilterConfig:
         if self.process_noise_intensity is not None:
             return np.array(self.process_noise_intensity[3:6])
         L = self.length_scale_m
-        v = self.lf_velocity_std_mps if self.lf_velocity_std_mps is not None else 0.002 * math.sqrt(_GRAVITY_MPS2 * L)
+        # without wave states (raw) the LF model must follow the wave motion too: the former, faster rule
+        factor = 0.002 if self.kind == "raw" else 0.001
+        v = self.lf_velocity_std_mps if self.lf_velocity_std_mps is not None else factor * math.sqrt(_GRAVITY_MPS2 * L)
         r = (self.lf_yaw_rate_std_radps if self.lf_yaw_rate_std_radps is not None
              else 0.002 * math.sqrt(_GRAVITY_MPS2 / L))
         return 2.0 * np.diag(self.mass_matrix) * np.diag(self.damping_matrix) * np.array([v, v, r]) ** 2
@@ -318,12 +365,19 @@ class WaveFilterConfig:
         moment = self.bias_moment_std_nm if self.bias_moment_std_nm is not None else D[2, 2] * v_c / L
         return np.array([force, force, moment])
 
+    def bias_drift_time(self) -> float:
+        """T_drift of the surge/sway bias [s]: ``bias_drift_time_s`` or ``360·√(L/g)`` (Froude scaled)."""
+        if self.bias_drift_time_s is not None:
+            return float(self.bias_drift_time_s)
+        return 360.0 * math.sqrt(self.length_scale_m / _GRAVITY_MPS2)
+
     def bias_intensity(self) -> np.ndarray:
         """Q3 (3,) [N²/s, N²/s, N²·m²/s]."""
         if self.process_noise_intensity is not None:
             return np.array(self.process_noise_intensity[6:9])
         if self.bias_time_constants_s is None:
-            return self.bias_std() ** 2 / self.bias_drift_time_s
+            drift = self.bias_drift_time()
+            return self.bias_std() ** 2 / np.array([drift, drift, self.bias_yaw_drift_time_s])
         return 2.0 * self.bias_std() ** 2 / np.asarray(self.bias_time_constants_s)
 
     def likelihood_band(self) -> tuple[float, float]:

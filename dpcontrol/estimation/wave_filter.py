@@ -707,7 +707,11 @@ class TimeVaryingWaveFilter(_FrameFilter):
 
 
 def make_wave_filter(config: WaveFilterConfig) -> WaveFilter:
-    """The wave filter for ``config.kind`` (mmae, kf, rpem, raw)."""
+    """The wave filter for ``config.kind`` (mmae, kf, rpem, pem, raw)."""
+    if config.kind == "pem":
+        from dpcontrol.estimation.pem import PemWaveFilter  # noqa: PLC0415 — pem imports this module
+
+        return PemWaveFilter(config)  # type: ignore[return-value]
     if config.kind == "rpem":
         from dpcontrol.estimation.rpem import RpemWaveFilter  # noqa: PLC0415 — rpem imports this module
 

@@ -63,7 +63,7 @@ class SensorRoute:
     source_name: int | None = None  # NMEA 2000 NAME filter (the 64-bit NAME of its 60928 address claim)
 
 
-ESTIMATOR_KINDS = ("mmae", "kf", "rpem", "raw", "kalman_bucy", "heading_kf")
+ESTIMATOR_KINDS = ("mmae", "kf", "rpem", "pem", "raw", "kalman_bucy", "heading_kf")
 CONTROL_KINDS = ("mrac", "pid", "autopilot")
 #: The sections that set how the controller behaves, as opposed to the installation (vessel_id, transports,
 #: sensors, zenoh, recorder, state, loop): what a scenario's ``controller:`` or an example configuration gives.
@@ -386,12 +386,12 @@ def _parse_estimator(section: Section, vessel: VesselData, rate_hz: float,
     if kind == "mmae":
         omegas = tuple(float(v) for v in Section.of(options, section.path).vector(
             "omegas_rad_s", None, [0.3, 0.45, 0.6, 0.75, 0.9, 1.05, 1.2, 1.35]))
-    elif kind in ("kf", "rpem"):
+    elif kind in ("kf", "rpem", "pem"):
         name = "omega_rad_s" if kind == "kf" else "omega0_rad_s"
         omegas = (Section.of(options, section.path).number(name, 0.8),)
     else:
         omegas = ()
-    key = {"mmae": "omegas_rad_s", "kf": "omega_rad_s", "rpem": "omega0_rad_s"}.get(kind)
+    key = {"mmae": "omegas_rad_s", "kf": "omega_rad_s", "rpem": "omega0_rad_s", "pem": "omega0_rad_s"}.get(kind)
     for i, omega in enumerate(omegas):
         if not 0.05 <= omega <= 5.0:
             where = f"{section.path}.{key}" + (f"[{i}]" if kind == "mmae" else "")

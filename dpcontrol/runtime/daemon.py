@@ -104,7 +104,8 @@ def status_payload(controller: DpController, alarms: AlarmRegistry, t_s: float, 
     return schemas.status_payload(t_s=t_s, seq=seq, mode=controller.mode.value, sensors=sensors,
                                   alarms=listed, cycle=cycle, thrusters=thrusters, request=controller.last_request,
                                   requests=controller.requests_since(t_s - RECENT_REQUESTS_S), consequence=consequence,
-                                  drives=drives)
+                                  drives=drives,
+                                  wave_band=None if controller.wave_band is None else controller.wave_band.summary())
 
 
 def consequence_record(report: ConsequenceReport) -> dict[str, Any]:
@@ -867,8 +868,9 @@ class Daemon:
         if out.reference is not None:
             recorder.record("reference", t_s, {"t_s": t_s, "eta_d_n": out.reference.eta_d_n.tolist(),
                                                "eta_dot_d_n": out.reference.eta_dot_d_n.tolist()})
+        wave_band = None if self.controller.wave_band is None else self.controller.wave_band.summary()
         recorder.record("control", t_s, {"t_s": t_s, "tau_b": out.tau_b.tolist(), "mrac": out.mrac,
-                                         "setpoint_n": out.setpoint_n.tolist()})
+                                         "setpoint_n": out.setpoint_n.tolist(), "wave_band": wave_band})
         recorder.record("allocation", t_s, {"t_s": t_s, "tau_achieved_b": out.tau_achieved_b.tolist(),
                                             "shortfall_b": out.shortfall_b.tolist()})
         recorder.record("command", t_s, {"t_s": t_s, "cycle": seq, "mode": out.mode.value, "names": self._names,

@@ -387,7 +387,7 @@ class MassAdaptiveEstimator:
             self._ratio[:] = values
 
 
-WAVE_FILTER_KINDS = ("mmae", "kf", "rpem", "raw")
+WAVE_FILTER_KINDS = ("mmae", "kf", "rpem", "pem", "raw")
 ESTIMATOR_KINDS = (*WAVE_FILTER_KINDS, "kalman_bucy", "heading_kf")
 
 

@@ -37,6 +37,7 @@ from dpbase.schema import ConfigError
 from dpcontrol.allocation import AllocationResult, ThrustAllocator
 from dpcontrol.control import ALL_DOFS, HEADING_ONLY, AutopilotConfig, HeadingAutopilot, MracController, make_controller
 from dpcontrol.estimation import WaveFilterOutput
+from dpcontrol.estimation.wave_band import WaveBandMeter
 from dpcontrol.guidance import Reference, ReferenceModel
 from dpcontrol.runtime.alarms import AlarmRegistry, Severity
 from dpcontrol.runtime.config import DaemonConfig
@@ -187,6 +188,12 @@ class DpController:
         self._capability_floor = (CAPABILITY_FLOOR * self.allocator.capability_scale).tolist()
         self.monitor = ThrusterMonitor(vessel.thrusters, config.thruster_monitor, self.alarms)
         self.deviation = DeviationMonitor(config.deviation, self.alarms)  # position/heading deviation alarms
+        # how much wave-frequency motion reaches the controller (status and record): the commanded force's and the
+        # LF estimate's wave-band std, over the band the wave filter is configured for
+        self.wave_band: WaveBandMeter | None = None
+        if config.estimator.wave_filter is not None:
+            omegas = config.estimator.wave_filter.omegas_rad_s or (0.8,)
+            self.wave_band = WaveBandMeter(self.dt_s, (0.5 * min(*omegas, 0.6), max(2.0 * max(omegas), 1.5)))
         # this step's requests, each as (seq, why it was refused, what it did beyond the mode and set-point), and
         # the index of the one whose mode is the step's requested mode (a mode refusal is that request's)
         self._taken: list[tuple[int, list[str], list[str]]] = []
@@ -439,6 +446,14 @@ class DpController:
                         self._mass_sent = mass
             else:
                 tau[:] = 0.0
+        meter = self.wave_band
+        if meter is not None:
+            if self.mode is Mode.STANDBY or out.estimate is None:
+                if meter.steps:
+                    meter.reset()
+            else:
+                meter.follow_peak(out.estimate.omega_hat_rad_s)
+                meter.update(tau, out.estimate.eta_hat_n)
         t3 = clock() if clock else 0.0
 
         # --- thruster health and allocation

@@ -511,7 +511,9 @@ STATUS = Schema("dpcontrol.status", 1, Record({
                                                    "busiest": _NAME}, optional=("busiest",)),
                                            unique="name", max_len=64)}),
     "drives": Record({"present": Flag(), "seen": Flag(), "feedback_age_s": Number(0.0, _MAX_TIME_S, nullable=True)}),
-}, optional=("request", "requests", "consequence", "drives")))
+    "wave_band": Record({"force_n": Number(0.0, _MAX_FORCE_N), "moment_nm": Number(0.0, _MAX_FORCE_N),
+                         "lf_position_m": Number(0.0, 1e6), "lf_heading_deg": Number(0.0, 360.0)}),
+}, optional=("request", "requests", "consequence", "drives", "wave_band")))
 
 SETPOINT = Schema("dpcontrol.setpoint", 1, Record({
     "mode": Text(choices=MODES, nullable=True),
@@ -1226,12 +1228,14 @@ def status_payload(*, t_s: float, seq: int, mode: str, sensors: Sequence[SensorH
                    alarms: Sequence[Alarm] = (), cycle: CycleTiming | None = None,
                    thrusters: Sequence[ThrusterAvailability] = (), request: RequestOutcome | None = None,
                    consequence: WorstCaseCheck | None = None, requests: Sequence[RequestOutcome] = (),
-                   drives: DrivesSeen | None = None) -> bytes:
+                   drives: DrivesSeen | None = None,
+                   wave_band: Mapping[str, float] | None = None) -> bytes:
     """Encode the daemon status: mode, per-sensor health, alarms, cycle timing, thruster availability, the
     outcome of the last operator request (``request``, absent before the first) and of each one taken lately
-    (``requests``, oldest first, the last 16 at most; absent when none), the last worst-case failure check
-    (``consequence``, absent when none ran: not configured, or not in DP), and the drives as the daemon sees
-    them (``drives``, absent when not given)."""
+    (``requests``, oldest first, the last 16 at most; absent when none), and the last worst-case failure check
+    (``consequence``, absent when none ran: not configured, or not in DP), and how much wave motion reaches
+    the controller (``wave_band``: the wave-band std of the commanded horizontal force [N] and yaw moment [N·m]
+    and of the LF position [m] and heading [deg] estimate; absent outside DP and in the first averaging time)."""
     extra: dict[str, Any] = {} if request is None else {"request": _request_outcome(request)}
     if drives is not None:
         extra["drives"] = {"present": bool(drives.present), "seen": bool(drives.seen),
@@ -1244,6 +1248,10 @@ def status_payload(*, t_s: float, seq: int, mode: str, sensors: Sequence[SensorH
             "t_s": float(consequence.t_s), "demand_b": _vec3(consequence.demand_b, _FORCE),
             "groups": [{"name": g.name, "holds": bool(g.holds), "utilisation": _num(g.utilisation),
                         **({} if g.busiest is None else {"busiest": g.busiest})} for g in consequence.groups]}
+    if wave_band is not None:
+        extra["wave_band"] = {"force_n": float(wave_band["force_n"]), "moment_nm": float(wave_band["moment_nm"]),
+                              "lf_position_m": float(wave_band["lf_position_m"]),
+                              "lf_heading_deg": math.degrees(float(wave_band["lf_heading_rad"]))}
     return _encode({
         "schema": STATUS.id, "t_s": float(t_s), "seq": int(seq), "mode": mode,
         "sensors": [{"name": s.name, "kind": s.kind, "state": s.state, "age_s": _num(s.age_s),
