@@ -142,6 +142,11 @@ def _fmt(value: Any, spec: str = ".2f", scale: float = 1.0) -> str:
     return _DASH if number is None else format(number * scale, spec)
 
 
+def _ratio(value: Any, nominal: Any) -> float | None:
+    number, base = _number(value), _number(nominal)
+    return None if number is None or not base else number / base
+
+
 def _deg(value: Any, spec: str = ".1f") -> str:
     number = _number(value)
     return _DASH if number is None else format(math.degrees(number), spec)
@@ -329,6 +334,11 @@ def _control_panel(state: MonitorState) -> Panel:
                       *(_fmt(_get(mass, k), ".5g", 1e-3) for k in ("surge_kg", "sway_kg", "yaw_kgm2")))
         _row(table, "MRAC damping [t/s …]",
                       *(_fmt(_get(damping, k), ".5g", 1e-3) for k in ("surge_kgps", "sway_kgps", "yaw_kgm2ps")))
+        nominal, states = _get(mrac, "nominal"), _get(mrac, "state")
+        if isinstance(nominal, Mapping) and isinstance(states, Mapping):  # estimate / nominal, and what it does
+            _row(table, "MRAC mass / nominal", *(
+                f"{_fmt(_ratio(_get(mass, k), _get(nominal, k)), '.2f')} {_get(states, dof) or ''}"
+                for k, dof in (("surge_kg", "surge"), ("sway_kg", "sway"), ("yaw_kgm2", "yaw"))))
     else:
         _row(table, "MRAC", "off", "", "")
     controller = _get(control, "controller")

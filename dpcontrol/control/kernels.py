@@ -49,10 +49,10 @@ from dpcontrol.models.frames import ssa_compiled as ssa
 
 C_BETA0, C_BETA1, C_G12, C_G_RATIO, C_GAMMA_M, C_GAMMA_C, C_DEAD_ZONE, C_ACCEL, C_VELOCITY = range(9)
 C_A2_LO, C_A2_HI, C_A1_LO, C_A1_HI, C_A2_NOMINAL, C_A1_NOMINAL, C_OMEGA, C_ZETA, C_FLAGS = range(9, 18)
-C_ENTRY_REST = 18
-C_ROWS = 19
-S_Y_M, S_YD_M, S_A2, S_A1, S_COMMAND, S_ACHIEVED, S_FLAGS, S_REST = range(8)
-S_ROWS = 8
+C_ENTRY_REST, C_COUPLING, C_DAMPING_OFF, C_NOISE_REF, C_NOISE_TIME = 18, 19, 20, 22, 23  # (C_DAMPING_OFF: 2 rows)
+C_ROWS = 24
+S_Y_M, S_YD_M, S_A2, S_A1, S_COMMAND, S_ACHIEVED, S_FLAGS, S_REST, S_NOISE = range(9)
+S_ROWS = 9
 OUT_TAU, OUT_ERROR, OUT_VELOCITY_ERROR, OUT_PARAMETERS = 0, 3, 6, 9
 OUT_SIZE = 18
 
@@ -60,6 +60,8 @@ OUT_SIZE = 18
 #: k-th vector argument (0 η̂, 1 ν̂, 2 b̂, 3 τ̂_wind, 4 η_d); a result >= 0 is the excitation bit mask (bit i:
 #: DOF i) plus ``MASS_CHANGED`` when an estimate â₂ changed.
 ERROR_INPUT = -1
+#: The typical move's peak regressor over the gating threshold (the default gating fraction is 5 %: 20).
+C_NORMALISATION = 20.0
 MASS_CHANGED = 8
 SATURATION_TOLERANCE = 1e-6
 
@@ -146,10 +148,11 @@ def _clamp(x: float, lo: float, hi: float) -> float:
     return hi if hi < y else y
 
 
-@kernel(i8(f8, f8_1d, f8_1d, f8_1d, f8_1d, f8_1d, i8, f8_2d, f8_2d, f8_1d))
+@kernel(i8(f8, f8_1d, f8_1d, f8_1d, f8_1d, f8_1d, f8_1d, f8_1d, i8, f8_2d, f8_2d, f8_1d))
 def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind: np.ndarray, r: np.ndarray,
-              mask: int, const: np.ndarray, state: np.ndarray, out: np.ndarray) -> int:
-    """One MRAC period: control law (17)–(18), adaptive law (21) and the exact advance of model (15).
+              r_dot: np.ndarray, r_ddot: np.ndarray, mask: int, const: np.ndarray, state: np.ndarray,
+              out: np.ndarray) -> int:
+    """One MRAC period: control law (17)–(18), adaptive law (21) and the reference y_M of this step.
 
     Parameters
     ----------
@@ -157,8 +160,10 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
         Sample time [s] (> 0, checked by the caller).
     eta, nu, bias, wind : ndarray, shape (3,)
         η̂ in NED [m, m, rad], ν̂ [m/s, m/s, rad/s], b̂ and τ̂_wind in body axes [N, N, N·m].
-    r : ndarray, shape (3,)
-        The guidance's pose η_d driving the reference model (``u_c = k_M r``) [m, m, rad].
+    r, r_dot, r_ddot : ndarray, shape (3,)
+        The guidance's η_d, η̇_d, η̈_d in NED. With ``C_COUPLING[2]`` set (the guided reference) they *are*
+        y_M, ẏ_M, ÿ_M; otherwise η_d drives seed 003's reference model (15) (``u_c = k_M r``) and the other two
+        are not read.
     mask : int
         Controlled DOFs, bit i for DOF i (surge 1, sway 2, yaw 4).
     const, state, out : ndarray
@@ -167,14 +172,14 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
     Returns
     -------
     int
-        The DOFs whose mass adaptation the reference model excited (bit mask) plus ``MASS_CHANGED`` when
-        â₂ changed (>= 0), or ``ERROR_INPUT − k`` when the k-th vector is not 3 finite numbers (nothing
-        changed then).
+        The parameters whose adaptation the regressor excited (bit mask, bit i: â₂ of DOF i) plus
+        ``MASS_CHANGED`` when â₂ changed (>= 0), or ``ERROR_INPUT − k`` when the k-th vector is not 3 finite
+        numbers (nothing changed then).
     """
     error = _state_inputs_error(eta, nu, bias, wind)
     if error != 0:
         return error
-    if _valid3(r) == 0:
+    if _valid3(r) == 0 or r_dot.size < 3 or r_ddot.size < 3:
         return ERROR_INPUT - 4
     y_m = state[S_Y_M]
     yd_m = state[S_YD_M]
@@ -182,24 +187,38 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
     a1 = state[S_A1]
     c = math.cos(eta[2])
     s = math.sin(eta[2])
-    if state[S_FLAGS, 0] == 0.0:  # bumpless: the model starts at the estimate, moving as the vessel moves
-        y_m[0] = eta[0]
-        y_m[1] = eta[1]
-        y_m[2] = ssa(eta[2])
-        yd_m[0] = c * nu[0] - s * nu[1]
-        yd_m[1] = s * nu[0] + c * nu[1]
-        yd_m[2] = nu[2]
-        state[S_FLAGS, 0] = 1.0
     b0 = const[C_BETA0]
     b1 = const[C_BETA1]
-
-    # reference model (15) with u_c = k_M r: its acceleration at t_k (NED; heading the short way)
-    d0 = r[0] - y_m[0]
-    d1 = r[1] - y_m[1]
-    d2 = ssa(r[2] - y_m[2])
-    ydd0 = b0[0] * d0 - b1[0] * yd_m[0]
-    ydd1 = b0[1] * d1 - b1[1] * yd_m[1]
-    ydd2 = b0[2] * d2 - b1[2] * yd_m[2]
+    coupling = const[C_COUPLING]
+    guided = coupling[2] != 0.0
+    d0 = d1 = d2 = 0.0
+    if guided:  # one reference: y_M is the guidance's η_d (seed 003 drives its model by the set-point itself)
+        y_m[0] = r[0]
+        y_m[1] = r[1]
+        y_m[2] = ssa(r[2])
+        yd_m[0] = r_dot[0]
+        yd_m[1] = r_dot[1]
+        yd_m[2] = r_dot[2]
+        ydd0 = r_ddot[0]
+        ydd1 = r_ddot[1]
+        ydd2 = r_ddot[2]
+        state[S_FLAGS, 0] = 1.0
+    else:
+        if state[S_FLAGS, 0] == 0.0:  # bumpless: the model starts at the estimate, moving as the vessel moves
+            y_m[0] = eta[0]
+            y_m[1] = eta[1]
+            y_m[2] = ssa(eta[2])
+            yd_m[0] = c * nu[0] - s * nu[1]
+            yd_m[1] = s * nu[0] + c * nu[1]
+            yd_m[2] = nu[2]
+            state[S_FLAGS, 0] = 1.0
+        # reference model (15) with u_c = k_M r: its acceleration at t_k (NED; heading the short way)
+        d0 = r[0] - y_m[0]
+        d1 = r[1] - y_m[1]
+        d2 = ssa(r[2] - y_m[2])
+        ydd0 = b0[0] * d0 - b1[0] * yd_m[0]
+        ydd1 = b0[1] * d1 - b1[1] * yd_m[1]
+        ydd2 = b0[2] * d2 - b1[2] * yd_m[2]
     # errors and reference in the vessel-parallel frame
     dn = eta[0] - y_m[0]
     de = eta[1] - y_m[1]
@@ -215,13 +234,41 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
     ydd_b[0] = c * ydd0 + s * ydd1
     ydd_b[1] = -s * ydd0 + c * ydd1
     ydd_b[2] = ydd2
+    coupled = coupling[1] != 0.0
+    if coupled:
+        # ν̇_d = d/dt (Rᵀ η̇_d) = Rᵀ η̈_d − S(r_d) ν_d (the rotation of the body axes; r_d = ẏ_M's heading rate)
+        rate = yd_b[2]
+        ydd_b[0] += rate * yd_b[1]
+        ydd_b[1] -= rate * yd_b[0]
     ed_b = out[OUT_VELOCITY_ERROR:OUT_VELOCITY_ERROR + 3]
     z = np.empty(3)
-    tau = out[OUT_TAU:OUT_TAU + 3]
     for i in range(3):
         ed_b[i] = nu[i] - yd_b[i]
         z[i] = ydd_b[i] - b1[i] * ed_b[i] - b0[i] * e_b[i]  # (17)
-        tau[i] = a2[i] * z[i] + a1[i] * nu[i] - bias[i] - wind[i] if (mask >> i) & 1 else 0.0  # (18)
+    # (18) with the full mass matrix: u = M̂ z + C(M̂, ν_d) ν_d + â₁ ν − b̂ − τ̂_wind. M̂₂₃ follows the sway and yaw
+    # estimates (M₂₃ √(â₂₂ â₃₃ / (M₂₂ M₃₃))): M̂ stays positive definite for every admissible estimate.
+    tau = out[OUT_TAU:OUT_TAU + 3]
+    u_d = yd_b[0]
+    v_d = yd_b[1]
+    r_d = yd_b[2]
+    m23 = 0.0
+    if coupled:
+        nominal = const[C_A2_NOMINAL]
+        m23 = coupling[0] * math.sqrt(a2[1] * a2[2] / (nominal[1] * nominal[2]))
+        tau[0] = a2[0] * z[0] - (a2[1] * v_d + m23 * r_d) * r_d
+        tau[1] = a2[1] * z[1] + m23 * z[2] + a2[0] * u_d * r_d
+        tau[2] = a2[2] * z[2] + m23 * z[1] + (a2[1] * v_d + m23 * r_d) * u_d - a2[0] * u_d * v_d
+    else:
+        for i in range(3):
+            tau[i] = a2[i] * z[i]
+    if coupled:  # the off-diagonal damping fed forward as a PD's D ν does (D₁₂, D₁₃, D₂₁ | D₂₃, D₃₁, D₃₂)
+        off = const[C_DAMPING_OFF]
+        off2 = const[C_DAMPING_OFF + 1]
+        tau[0] += off[0] * nu[1] + off[1] * nu[2]
+        tau[1] += off[2] * nu[0] + off2[0] * nu[2]
+        tau[2] += off2[1] * nu[0] + off2[2] * nu[1]
+    for i in range(3):
+        tau[i] = tau[i] + a1[i] * nu[i] - bias[i] - wind[i] if (mask >> i) & 1 else 0.0
 
     excited = 0
     mass_changed = False
@@ -231,24 +278,59 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
         command = state[S_COMMAND]
         achieved = state[S_ACHIEVED]
         known = state[S_FLAGS, 1] != 0.0
-        for i in range(3):
-            if not (mask >> i) & 1:
+        # per DOF j: the normalised error signal s̄_j = bᵀGx_j / g₁₂ with a continuous dead zone, then bᵀGx_j;
+        # a DOF that is not controlled, or whose last command the allocator could not deliver, teaches nothing
+        signal = np.zeros(3)
+        blocked = 0
+        for j in range(3):
+            if not (mask >> j) & 1:
+                blocked |= 1 << j
                 continue
-            if known and abs(achieved[i] - command[i]) > SATURATION_TOLERANCE * (1.0 + abs(command[i])):
-                continue  # the allocator could not deliver the last command: nothing to learn
+            if known and abs(achieved[j] - command[j]) > SATURATION_TOLERANCE * (1.0 + abs(command[j])):
+                blocked |= 1 << j
+                continue  # the error is the saturation's, not a wrong mass: nothing learnt in this DOF
+            s_bar = e_b[j] + const[C_G_RATIO, j] * ed_b[j]
+            # the error signal's mean square, moves and rests alike (exponential average over C_NOISE_TIME)
+            weight = dt / const[C_NOISE_TIME, j] if dt < const[C_NOISE_TIME, j] else 1.0
+            state[S_NOISE, j] += weight * (s_bar * s_bar - state[S_NOISE, j])
+            excess = abs(s_bar) - const[C_DEAD_ZONE, j]
+            signal[j] = const[C_G12, j] * math.copysign(excess, s_bar) if excess > 0.0 else 0.0
+        # the regressor: column i = ∂τ/∂â₂ᵢ (rows: surge, sway, yaw) on the noise-free reference, with the
+        # coupling's rotation/Coriolis terms
+        phi = np.zeros((3, 3))
+        phi[0, 0] = ydd_b[0]
+        phi[1, 1] = ydd_b[1]
+        phi[2, 2] = ydd_b[2]
+        if coupled:
+            phi[1, 0] = u_d * r_d
+            phi[2, 0] = -u_d * v_d
+            phi[0, 1] = -v_d * r_d
+            phi[2, 1] = u_d * v_d
+        gates = 0
+        excitation = np.zeros(3)
+        for i in range(3):
+            # excitation measured on the regressor column, each row in its DOF's acceleration units
+            # (× M_ii/M_jj) against that DOF's gating threshold
+            energy = 0.0
+            rows_known = True
+            for j in range(3):
+                threshold = const[C_ACCEL, j]
+                value = phi[j, i] * const[C_A2_NOMINAL, i] / const[C_A2_NOMINAL, j]
+                if threshold > 0.0:
+                    energy += (value / threshold) ** 2
+                elif value != 0.0:
+                    rows_known = False
+            excitation[i] = energy
+            if energy > 1.0 or not rows_known:
+                gates |= 1 << i
+        if flags[2] == 0.0:  # seed 003's plant regressor v = z (the gating stays on the reference)
+            for i in range(3):
+                phi[i, i] = z[i]
+        for i in range(3):
+            if (blocked >> i) & 1:
+                continue
             mass_before = a2[i]
-            # normalised error signal s̄ = bᵀGx / g₁₂ with a continuous dead zone, then bᵀGx = g₁₂ s̄_dz
-            s_bar = e_b[i] + const[C_G_RATIO, i] * ed_b[i]
-            excess = abs(s_bar) - const[C_DEAD_ZONE, i]
-            signal = const[C_G12, i] * math.copysign(excess, s_bar) if excess > 0.0 else 0.0
-            # (21), each parameter only while the reference model excites it
-            if flags[2] != 0.0:  # desired-compensation law: v_M = [ÿ_M, ẏ_M] instead of v = [z, ẏ]
-                v2 = ydd_b[i]
-                v1 = yd_b[i]
-            else:
-                v2 = z[i]
-                v1 = nu[i]
-            gate = abs(ydd_b[i]) > const[C_ACCEL, i]
+            gate = (gates >> i) & 1 != 0
             rest = state[S_REST, i]
             if rest < const[C_ENTRY_REST, i]:  # since the entry the reference has not rested long enough
                 if gate:
@@ -258,16 +340,34 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
                     state[S_REST, i] = rest + dt
             if gate:
                 excited |= 1 << i
-            gamma_m = const[C_GAMMA_M, i]
-            gamma_c = const[C_GAMMA_C, i]
-            rate2 = -gamma_m * v2 * signal if gate else 0.0
-            rate1 = -gamma_c * v1 * signal if abs(yd_b[i]) > const[C_VELOCITY, i] else 0.0
+            # Γ scaled by the error signal's noise: × min(1, σ_ref² / ⟨s̄²⟩) (the scatter of the estimate grows as
+            # Γ⟨s̄²⟩: held at what the Γ designed for a σ_ref-quiet error signal gives; σ_ref = 0: no scaling)
+            scale = 1.0
+            noise = state[S_NOISE, i]
+            reference_noise = const[C_NOISE_REF, i] * const[C_NOISE_REF, i]
+            if noise > reference_noise > 0.0:
+                scale = reference_noise / noise
+            # normalised gradient: ÷ (1 + |φ|²/|φ_typ|²), |φ_typ| = the typical move's peak (C_NORMALISATION × the
+            # gating threshold): a move larger or faster than the design move teaches no faster than it (its error
+            # grows with what the law does not model: thruster lag and limits)
+            scale /= 1.0 + excitation[i] / (C_NORMALISATION * C_NORMALISATION)
+            gamma_m = const[C_GAMMA_M, i] * scale
+            gamma_c = const[C_GAMMA_C, i] * scale
+            rate2 = 0.0
+            if gate:
+                for j in range(3):
+                    rate2 -= gamma_m * phi[j, i] * signal[j]
+            v1 = yd_b[i] if flags[2] != 0.0 else nu[i]
+            rate1 = -gamma_c * v1 * signal[i] if abs(yd_b[i]) > const[C_VELOCITY, i] else 0.0
             leak = sigma if sigma > 0.0 else 0.0  # no leakage (the default): the plain integral of (21)
             a2[i] = _adapted(a2[i], const[C_A2_NOMINAL, i], rate2, leak * gamma_m, dt)
             a1[i] = _adapted(a1[i], const[C_A1_NOMINAL, i], rate1, leak * gamma_c, dt)
-            # projection onto the physical bounds
+            # projection onto the physical bounds, and â₁ ≤ c_min + 0.9 â₂β₁ (a half-plane: the frozen loop's
+            # damping c + â₂β₁ − â₁ stays positive for a hull with at least c_min = C_A1_LO)
             a2[i] = _clamp(a2[i], const[C_A2_LO, i], const[C_A2_HI, i])
             a1[i] = _clamp(a1[i], const[C_A1_LO, i], const[C_A1_HI, i])
+            frozen_damping = const[C_A1_LO, i] + 0.9 * a2[i] * b1[i]
+            a1[i] = min(a1[i], frozen_damping)
             if a2[i] != mass_before:
                 mass_changed = True
     parameters = out[OUT_PARAMETERS:]
@@ -277,16 +377,17 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
         parameters[3 + i] = a1[i]
         parameters[6 + i] = y_m[i]
 
-    # advance the reference model over the sample (exact ZOH discretisation of (15)), about its
-    # equilibrium r (the heading unwrapped next to y_M)
-    for i in range(3):
-        p11, p12, p21, p22 = reference_transition(const[C_OMEGA, i], const[C_ZETA, i], dt)
-        d = d0 if i == 0 else (d1 if i == 1 else d2)
-        target = y_m[i] + d
-        y_new = target + (p12 * yd_m[i] - p11 * d)
-        yd_m[i] = p22 * yd_m[i] - p21 * d
-        y_m[i] = y_new
-    y_m[2] = ssa(y_m[2])
+    if not guided:
+        # advance the reference model over the sample (exact ZOH discretisation of (15)), about its
+        # equilibrium r (the heading unwrapped next to y_M)
+        for i in range(3):
+            p11, p12, p21, p22 = reference_transition(const[C_OMEGA, i], const[C_ZETA, i], dt)
+            d = d0 if i == 0 else (d1 if i == 1 else d2)
+            target = y_m[i] + d
+            y_new = target + (p12 * yd_m[i] - p11 * d)
+            yd_m[i] = p22 * yd_m[i] - p21 * d
+            y_m[i] = y_new
+        y_m[2] = ssa(y_m[2])
     return excited | MASS_CHANGED if mass_changed else excited
 
 

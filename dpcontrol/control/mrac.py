@@ -132,6 +132,8 @@ from dpcontrol.control.kernels import (
     C_ACCEL,
     C_BETA0,
     C_BETA1,
+    C_COUPLING,
+    C_DAMPING_OFF,
     C_DEAD_ZONE,
     C_ENTRY_REST,
     C_FLAGS,
@@ -139,6 +141,8 @@ from dpcontrol.control.kernels import (
     C_G_RATIO,
     C_GAMMA_C,
     C_GAMMA_M,
+    C_NOISE_REF,
+    C_NOISE_TIME,
     C_OMEGA,
     C_ROWS,
     C_VELOCITY,
@@ -155,13 +159,14 @@ from dpcontrol.control.kernels import (
     S_ACHIEVED,
     S_COMMAND,
     S_FLAGS,
+    S_NOISE,
     S_REST,
     S_ROWS,
     S_Y_M,
     S_YD_M,
     mrac_step,
 )
-from dpcontrol.control.pid import default_natural_period_s
+from dpcontrol.control.pid import default_natural_period_s, default_pid_config
 from dpcontrol.guidance.reference_model import Reference, ReferenceModel, ReferenceModelConfig, default_reference_config
 from dpcontrol.models.frames import ssa
 from dpcontrol.models.schema import ConfigError, Section, check_vector
@@ -170,10 +175,19 @@ from dpcontrol.models.vessels import VesselData
 PARAMETER_NAMES: tuple[str, ...] = ("mass_surge_kg", "mass_sway_kg", "inertia_yaw_kgm2",
                                     "damping_surge_nspm", "damping_sway_nspm", "damping_yaw_nmsprad")
 REGRESSORS: tuple[str, ...] = ("reference", "plant")
+#: Where y_M comes from: ``guidance`` — the guidance's η_d, η̇_d, η̈_d are y_M, ẏ_M, ÿ_M (one reference: the pose the
+#: operator sees is the pose tracked); ``model`` — seed 003's reference model (15) driven by η_d (``u_c = k_M η_d``).
+REFERENCE_SOURCES: tuple[str, ...] = ("guidance", "model")
+#: Per-DOF state of the mass adaptation (:meth:`MracController.adaptation_states`).
+ADAPTATION_STATES: tuple[str, ...] = ("adapting", "frozen", "suspended", "fixed")
+#: â₁ ≤ c_min + DAMPING_MARGIN · â₂β₁: the share of the smallest admissible D gain â₂β₁ the damping feed-forward may
+#: take (the frozen loop keeps the rest, see MracConfig.damping_bounds_factor). Also in the kernel.
+DAMPING_MARGIN = 0.9
 #: Reference-model outputs added to :attr:`ControlOutput.parameters` by :meth:`MracController.step`: the
 #: state ``y_M`` of eq. (15) in NED at the step's time (the pose the vessel is made to track).
 REFERENCE_MODEL_NAMES: tuple[str, ...] = ("ref_model_north_m", "ref_model_east_m", "ref_model_heading_rad")
 Triple = tuple[float, float, float]
+_OFF_DIAGONAL = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))  # the order of MracConfig.damping_coupling
 
 
 def _triple(name: str, value: Any, *, positive: bool = True, allow_zero: bool = False) -> Triple:
@@ -210,8 +224,10 @@ class MracConfig:
     velocity_threshold : 3 floats
         ``v_min``: â₁ adapts only while ``|ẏ_M| > v_min`` [m/s, m/s, rad/s] (>= 0).
     mass_bounds_factor, damping_bounds_factor : 2 floats
-        Projection bounds of ``â₂`` relative to ``mass_nominal`` and the upper bound of ``â₁``
-        relative to ``damping_nominal`` (lower bound 0; upper at least ``m_nom β₁``).
+        Projection bounds of ``â₂`` and ``â₁`` relative to ``mass_nominal`` and ``damping_nominal`` (â₁'s upper
+        bound at least ``m_nom β₁``). â₁ is also held below ``c_min + 0.9 â₂β₁`` with ``c_min`` = the low damping
+        factor × ``damping_nominal``, the least damping the hull is assumed to have: the frozen loop
+        ``m ë + (c + â₂β₁ − â₁) ė + â₂β₀ e = 0`` then keeps its damping for every admissible estimate.
     leakage_per_s : float
         σ of the σ-modification (0 = off) [1/s].
     regressor : {"reference", "plant"}
@@ -225,6 +241,22 @@ class MracConfig:
         After each entry into DP (:meth:`MracController.reset`) nothing is learnt until the reference model
         has rested (gate closed) this long [s] (>= 0; 0 = learn at once; the default design: one
         reference-model period). See "The entry glide" in the module docstring.
+    reference : {"guidance", "model"}
+        Where y_M comes from (:data:`REFERENCE_SOURCES`): the guidance's reference itself (default) or seed 003's
+        reference model (15) driven by it (``step_driven`` designs).
+    coupling : bool
+        The multivariable law: the full mass matrix (``mass_coupling_nominal`` = M₂₃) and the rotation/Coriolis
+        terms in the control law and the regressor (default); False: three SISO loops as seed 003 writes them.
+    mass_coupling_nominal : float
+        M₂₃ = M₃₂, the sway–yaw coupling of the mass matrix incl. added mass [kg·m] (|M₂₃| < √(M₂₂M₃₃)).
+    damping_coupling : 6 floats
+        The off-diagonal damping D₁₂, D₁₃, D₂₁, D₂₃, D₃₁, D₃₂ (SI), fed forward on ν with the coupling (not adapted).
+    noise_reference : 3 floats
+        σ_ref [m, m, rad]: the rms of the error signal s̄ the adaptation gains are designed for. Γ is scaled by
+        ``min(1, σ_ref² / ⟨s̄²⟩)`` with ``⟨s̄²⟩`` measured on line (>= 0; 0 = no scaling). See "Noise" in the
+        module docstring.
+    noise_time_s : float
+        Averaging time of ``⟨s̄²⟩`` [s] (> 0).
     """
 
     mass_nominal: Triple
@@ -238,11 +270,17 @@ class MracConfig:
     accel_threshold: Triple = (0.0, 0.0, 0.0)
     velocity_threshold: Triple = (0.0, 0.0, 0.0)
     mass_bounds_factor: tuple[float, float] = (0.3, 5.0)
-    damping_bounds_factor: tuple[float, float] = (0.0, 20.0)
+    damping_bounds_factor: tuple[float, float] = (0.5, 20.0)
     leakage_per_s: float = 0.0
     adapt: bool = True
     regressor: str = "reference"
     entry_rest_s: float = 0.0
+    reference: str = "guidance"
+    coupling: bool = True
+    mass_coupling_nominal: float = 0.0
+    damping_coupling: tuple[float, ...] = (0.0,) * 6
+    noise_reference: Triple = (0.0, 0.0, 0.0)
+    noise_time_s: float = 1.0
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "mass_nominal", _triple("mass_nominal", self.mass_nominal))
@@ -273,6 +311,29 @@ class MracConfig:
             raise ValueError(f"adapt must be true or false, got {self.adapt!r}")
         if self.regressor not in REGRESSORS:
             raise ValueError(f"regressor must be one of {REGRESSORS}, got {self.regressor!r}")
+        if self.reference not in REFERENCE_SOURCES:
+            raise ValueError(f"reference must be one of {REFERENCE_SOURCES}, got {self.reference!r}")
+        if not isinstance(self.coupling, bool):
+            raise ValueError(f"coupling must be true or false, got {self.coupling!r}")
+        m23 = float(self.mass_coupling_nominal)
+        if not (math.isfinite(m23) and m23 * m23 < self.mass_nominal[1] * self.mass_nominal[2]):
+            raise ValueError(f"mass_coupling_nominal must satisfy |M23| < sqrt(M22 M33) (a positive definite mass "
+                             f"matrix), got {self.mass_coupling_nominal!r}")
+        object.__setattr__(self, "mass_coupling_nominal", m23)
+        off = tuple(float(v) for v in self.damping_coupling)
+        if len(off) != 6 or not all(math.isfinite(v) for v in off):
+            raise ValueError(f"damping_coupling must be 6 finite numbers, got {self.damping_coupling!r}")
+        object.__setattr__(self, "damping_coupling", off)
+        object.__setattr__(self, "noise_reference", _triple("noise_reference", self.noise_reference, allow_zero=True))
+        if not (math.isfinite(self.noise_time_s) and self.noise_time_s > 0.0):
+            raise ValueError(f"noise_time_s must be finite and > 0, got {self.noise_time_s!r}")
+        beta1 = self.beta1.tolist()
+        for i, (c, m, b1) in enumerate(zip(self.damping_nominal, self.mass_nominal, beta1, strict=True)):
+            if c > dlo * c + DAMPING_MARGIN * m * b1:
+                raise ValueError(
+                    f"damping_nominal[{i}] = {c:.4g} leaves the frozen loop without damping if the hull had "
+                    f"{dlo:g}x that (damping_bounds_factor's low factor): raise that factor or the reference-model "
+                    "frequency")
 
     @property
     def beta0(self) -> np.ndarray:
@@ -346,13 +407,14 @@ class ReferenceExcitation:
 
 @functools.lru_cache(maxsize=32)
 def reference_excitation(guidance: ReferenceModelConfig, natural_period_s: Triple, relative_damping: Triple,
-                         excitation: Triple) -> ReferenceExcitation:
+                         excitation: Triple, guided: bool = False) -> ReferenceExcitation:
     """The MRAC reference model (15) driven by the guidance's answer to a set-point step of ℓ.
 
     The runtime drives the MRAC reference model with the output of the guidance
     (:class:`~dpcontrol.guidance.reference_model.ReferenceModel`: third order, speed and acceleration
     limits), not with the raw set-point steps of seed 003: the cascade is smoother and its ÿ_M far
-    smaller (for the shuttle tanker and a 20 m move 1.8·10⁻³ m/s² instead of β₀ℓ = 2·10⁻² m/s²).
+    smaller (for the shuttle tanker and a 20 m move 1.8·10⁻³ m/s² instead of β₀ℓ = 2·10⁻² m/s²). ``guided``: y_M
+    is the guidance's reference itself (``reference: guidance``), its η̈_d and η̇_d are measured.
     Gains and gating thresholds designed for a step would then adapt ≈ 100× too slowly (seed 003's
     mass estimate would not keep up with the loading). Simulated once per configuration (cached):
     north and heading moved together (independent channels; sway is surge's mirror image).
@@ -375,16 +437,22 @@ def reference_excitation(guidance: ReferenceModelConfig, natural_period_s: Tripl
     peak_v = [0.0, 0.0, 0.0]
     state = {i: np.zeros(3) for i in dofs}  # [y_M, ẏ_M, r] per DOF
     for _ in range(steps):
-        r = model.step(dt, target).eta_d_n
+        guide = model.step(dt, target)
+        r = guide.eta_d_n
         for i in dofs:
             x = state[i]
             e, beta0, beta1 = phi[i]
-            x[2] = r[i]
-            accel = beta0 * (x[2] - x[0]) - beta1 * x[1]
+            if guided:
+                accel = float(guide.eta_ddot_d_n[i])
+                speed = abs(float(guide.eta_dot_d_n[i]))
+            else:
+                x[2] = r[i]
+                accel = beta0 * (x[2] - x[0]) - beta1 * x[1]
+                speed = abs(x[1])
+                state[i] = e @ x
             energy[i] += accel * accel * dt
             peak_a[i] = max(peak_a[i], abs(accel))
-            peak_v[i] = max(peak_v[i], abs(x[1]))
-            state[i] = e @ x
+            peak_v[i] = max(peak_v[i], speed)
     return ReferenceExcitation(energy=(energy[0], energy[0], energy[2]), peak_accel=(peak_a[0], peak_a[0], peak_a[2]),
                                peak_velocity=(peak_v[0], peak_v[0], peak_v[2]))
 
@@ -405,10 +473,13 @@ _DEAD_ZONE_PER_LENGTH = 2e-4
 _DEAD_ZONE_YAW_RAD = math.radians(0.05)
 _GATING_FRACTION = 0.05
 _ENTRY_REST_PERIODS = 1.0  # rest after an entry into DP before anything is learnt, in reference-model periods
+_NOISE_REFERENCE_FRACTION = 0.02  # σ_ref of the error signal, per unit of the typical move ℓ
+_NOISE_PERIODS = 2.0  # averaging time of ⟨s̄²⟩, in reference-model periods
 
 
 def default_mrac_config(vessel: VesselData, natural_period_s: float | None = None,
-                        guidance: ReferenceModelConfig | None = None, *, step_driven: bool = False) -> MracConfig:
+                        guidance: ReferenceModelConfig | None = None, *, step_driven: bool = False,
+                        adaptation_periods: float | None = None) -> MracConfig:
     """MRAC defaults for a vessel: nominal parameters from diag(M), diag(D), seed 003 reference model.
 
     The reference-model period is 200 s for the shuttle tankers (seed 003) and the Froude-scaled
@@ -419,12 +490,15 @@ def default_mrac_config(vessel: VesselData, natural_period_s: float | None = Non
     steps, as in seed 003's single-DOF study (:mod:`dpcontrol.control.offloading_case`), not by a guidance.
     """
     period = float(natural_period_s) if natural_period_s is not None else default_natural_period_s(vessel)
-    periods = (period, period, period)
+    periods: Triple = (period, period, period)
+    zetas: Triple = (1.0, 1.0, 1.0)
+    if natural_period_s is None and not step_driven:
+        periods, zetas = pd_equivalent_model(vessel)
+        period = max(periods)
     mass = tuple(float(v) for v in np.diag(vessel.mass_matrix))
     damping = tuple(max(float(v), 0.0) for v in np.diag(vessel.damping_matrix))
     length = vessel.length_m
     excitation = (_EXCITATION_PER_LENGTH * length, _EXCITATION_PER_LENGTH * length, _EXCITATION_YAW_RAD)
-    zetas = (1.0, 1.0, 1.0)
     if step_driven:
         # a step of ℓ: ÿ_M peaks at β₀ℓ, ẏ_M at ω_M ℓ/e (ζ = 1); Γ as designed for it
         omega = 2.0 * math.pi / period
@@ -434,9 +508,9 @@ def default_mrac_config(vessel: VesselData, natural_period_s: float | None = Non
         velocity = tuple(_GATING_FRACTION * omega * ell / math.e for ell in excitation)
     else:
         moves = reference_excitation(guidance if guidance is not None else default_reference_config(vessel),
-                                     periods, zetas, excitation)
-        gain_m, _ = adaptation_gains(mass, periods, zetas, excitation,
-                                     adaptation_time_constant_s=_ADAPTATION_PERIODS_GUIDED * period,
+                                     periods, zetas, excitation, guided=True)
+        adaptation = _ADAPTATION_PERIODS_GUIDED if adaptation_periods is None else adaptation_periods
+        gain_m, _ = adaptation_gains(mass, periods, zetas, excitation, adaptation_time_constant_s=adaptation * period,
                                      excitation_energy=moves.energy)
         gain_c = (0.0, 0.0, 0.0)  # damping not adapted by default (see the module docstring)
         accel = tuple(_GATING_FRACTION * a for a in moves.peak_accel)
@@ -452,7 +526,34 @@ def default_mrac_config(vessel: VesselData, natural_period_s: float | None = Non
         accel_threshold=accel,  # type: ignore[arg-type]
         velocity_threshold=velocity,  # type: ignore[arg-type]
         entry_rest_s=0.0 if step_driven else _ENTRY_REST_PERIODS * period,
+        reference="model" if step_driven else "guidance",
+        mass_coupling_nominal=0.5 * float(vessel.mass_matrix[1, 2] + vessel.mass_matrix[2, 1]),
+        damping_coupling=tuple(float(vessel.damping_matrix[i, j]) for i, j in _OFF_DIAGONAL),  # type: ignore[arg-type]
+        noise_reference=(0.0, 0.0, 0.0) if step_driven else tuple(  # type: ignore[arg-type]
+            _NOISE_REFERENCE_FRACTION * ell for ell in excitation),
+        noise_time_s=_NOISE_PERIODS * period,
     )
+
+
+def pd_equivalent_model(vessel: VesselData) -> tuple[Triple, Triple]:
+    """Reference-model periods and ζ per DOF that make the frozen MRAC the vessel's default PD.
+
+    At nominal parameters eq. (25) is a PD with ``P = m β₀`` and ``D = m β₁ − c`` (the damping fed forward): with
+    ``β₀ = K_P,ii / M_ii`` and ``β₁ = (K_D,ii + D_ii) / M_ii`` from :func:`~dpcontrol.control.pid.default_pid_config`
+    (pole placement at :func:`~dpcontrol.control.pid.default_natural_period_s`, ζ = 1; seed 000's gains on
+    CyberShip II) the MRAC starts as the PID it augments, so adaptation is all it adds.
+    """
+    pid = default_pid_config(vessel, "bias_feedforward")
+    periods = []
+    zetas = []
+    for i in range(3):
+        m = float(vessel.mass_matrix[i, i])
+        beta0 = float(pid.kp[i, i]) / m
+        beta1 = (float(pid.kd[i, i]) + float(vessel.damping_matrix[i, i])) / m
+        omega = math.sqrt(beta0)
+        periods.append(2.0 * math.pi / omega)
+        zetas.append(beta1 / (2.0 * omega))
+    return (periods[0], periods[1], periods[2]), (zetas[0], zetas[1], zetas[2])
 
 
 def mrac_config_from_mapping(value: object, vessel: VesselData, path: str = "control") -> MracConfig:
@@ -462,7 +563,7 @@ def mrac_config_from_mapping(value: object, vessel: VesselData, path: str = "con
     ``damping_nominal``, ``adaptation_gain_mass``, ``adaptation_gain_damping``, ``dead_zone``,
     ``accel_threshold``, ``velocity_threshold`` (number or 3 numbers; yaw in rad), ``lyapunov_q``
     (2), ``mass_bounds_factor`` (2), ``damping_bounds_factor`` (2), ``leakage_per_s``, ``entry_rest_s``, ``regressor``
-    (``reference`` | ``plant``), ``adapt``
+    (``reference`` | ``plant``), ``reference`` (``guidance`` | ``model``), ``coupling`` (bool), ``adapt``
     (bool, default true; false = the fixed PD of seed 003 eq. (25) at ``mass_nominal``).
     """
     section = Section.of(value, path)
@@ -470,11 +571,14 @@ def mrac_config_from_mapping(value: object, vessel: VesselData, path: str = "con
     period = section.raw("natural_period_s", None)
     if period is not None:
         period = section.number("natural_period_s", minimum=0.0, exclusive_minimum=True)
-    base = default_mrac_config(vessel, period)
+    periods = section.raw("adaptation_periods", None)
+    if periods is not None:
+        periods = section.number("adaptation_periods", minimum=0.0, exclusive_minimum=True)
+    base = default_mrac_config(vessel, period, adaptation_periods=periods)
     kwargs: dict[str, Any] = {}
     for key, length in (("relative_damping", 3), ("mass_nominal", 3), ("damping_nominal", 3),
                         ("adaptation_gain_mass", 3), ("adaptation_gain_damping", 3), ("dead_zone", 3),
-                        ("accel_threshold", 3), ("velocity_threshold", 3),
+                        ("accel_threshold", 3), ("velocity_threshold", 3), ("noise_reference", 3),
                         ("lyapunov_q", 2), ("mass_bounds_factor", 2), ("damping_bounds_factor", 2)):
         raw = section.raw(key, None)
         if raw is None:
@@ -486,6 +590,8 @@ def mrac_config_from_mapping(value: object, vessel: VesselData, path: str = "con
     kwargs["entry_rest_s"] = section.number("entry_rest_s", base.entry_rest_s, minimum=0.0)
     kwargs["adapt"] = section.boolean("adapt", True)
     kwargs["regressor"] = section.string("regressor", "reference", choices=REGRESSORS)
+    kwargs["reference"] = section.string("reference", base.reference, choices=REFERENCE_SOURCES)
+    kwargs["coupling"] = section.boolean("coupling", base.coupling)
     try:
         config = MracConfig(**{**base.__dict__, **kwargs})
     except ValueError as error:
@@ -516,6 +622,7 @@ class MracController:
     def __init__(self, config: MracConfig, adapt: bool | None = None) -> None:
         self._config = config
         self._adapt = config.adapt if adapt is None else bool(adapt)
+        self._suspended = False  # the supervision stopped the adaptation (suspend_adaptation)
         beta0 = [float(v) for v in config.beta0]
         beta1 = [float(v) for v in config.beta1]
         self._beta0 = beta0
@@ -553,10 +660,16 @@ class MracController:
         const[C_ZETA] = config.relative_damping
         const[C_FLAGS] = (config.leakage_per_s, float(self._adapt), float(config.regressor == "reference"))
         const[C_ENTRY_REST] = config.entry_rest_s
+        guided = float(config.reference == "guidance")
+        const[C_COUPLING] = (config.mass_coupling_nominal, float(config.coupling), guided)
+        const[C_DAMPING_OFF:C_DAMPING_OFF + 2] = np.reshape(config.damping_coupling, (2, 3))
+        const[C_NOISE_REF] = config.noise_reference
+        const[C_NOISE_TIME] = config.noise_time_s
         self._const = const
         self._state = np.zeros((S_ROWS, 3))
         self._state[S_A2] = m_nom
         self._state[S_A1] = c_nom
+        self._state[S_NOISE] = [s * s for s in config.noise_reference]  # ⟨s̄²⟩ starts at σ_ref²: Γ as designed
         self._excited = 0  # bit i: the reference model excited DOF i's mass adaptation at the last step
         self._mass_low = tuple(const[C_A2_LO].tolist())  # the projection bounds as floats (_set_mass)
         self._mass_high = tuple(const[C_A2_HI].tolist())
@@ -628,15 +741,17 @@ class MracController:
         result = ERROR_INPUT
         if mask >= 0:
             try:
-                result = mrac_step(dt, eta_hat_n, nu_hat_b, bias, wind, reference.eta_d_n, mask, self._const,
-                                   self._state, out)
+                result = mrac_step(dt, eta_hat_n, nu_hat_b, bias, wind, reference.eta_d_n, reference.eta_dot_d_n,
+                                   reference.eta_ddot_d_n, mask, self._const, self._state, out)
             except TypeError:
                 result = ERROR_INPUT
         if result < 0:  # the arguments checked in order and converted: the first invalid one raises ValueError
             eta, nu, mask, bias, wind = checked_state_inputs(
                 eta_hat_n, nu_hat_b, dof_enabled, bias_hat_b=bias_hat_b, tau_wind_ff_b=tau_wind_ff_b, zero3=self._zero3)
             r = np.array(floats3("reference.eta_d_n", reference.eta_d_n))
-            result = mrac_step(dt, eta, nu, bias, wind, r, mask, self._const, self._state, out)
+            r_dot = np.array(floats3("reference.eta_dot_d_n", reference.eta_dot_d_n))
+            r_ddot = np.array(floats3("reference.eta_ddot_d_n", reference.eta_ddot_d_n))
+            result = mrac_step(dt, eta, nu, bias, wind, r, r_dot, r_ddot, mask, self._const, self._state, out)
         self._excited = result
         values = out.tolist()
         m0, m1, m2, c0, c1, c2, north, east, heading = values[OUT_PARAMETERS:]
@@ -649,6 +764,27 @@ class MracController:
                       "ref_model_east_m": east, "ref_model_heading_rad": heading}
         return ControlOutput(out[OUT_TAU:OUT_TAU + 3], out[OUT_ERROR:OUT_ERROR + 3],
                              out[OUT_VELOCITY_ERROR:OUT_VELOCITY_ERROR + 3], parameters)
+
+    def tracked_pose_n(self, reference: Reference) -> np.ndarray:
+        """The pose the vessel is made to follow at the last step, y_M in NED [m, m, rad] (a view: copy to keep).
+
+        With the guided reference (the default) it is the guidance's η_d; with seed 003's reference model (15) it
+        trails η_d by that model's lag. The runtime's deviation alarms measure from it.
+        """
+        return self._state[S_Y_M]
+
+    def adaptation_states(self) -> tuple[str, str, str]:
+        """Per DOF (surge, sway, yaw), what the mass estimate â₂ does (:data:`ADAPTATION_STATES`).
+
+        ``adapting``: the regressor excites it (it learns this step); ``frozen``: adapting, but nothing to learn from
+        (the reference rests, or the entry rest has not passed); ``suspended``: the supervision stopped the
+        adaptation (:meth:`suspend_adaptation`); ``fixed``: configured not to adapt (``adapt: false``).
+        """
+        if not self._adapt:
+            state = "suspended" if self._suspended else "fixed"
+            return (state, state, state)
+        a, b, c = self.excited
+        return ("adapting" if a else "frozen", "adapting" if b else "frozen", "adapting" if c else "frozen")
 
     def mass_at_bound(self) -> int | None:
         """The first DOF (0 surge, 1 sway, 2 yaw) whose ``â₂`` sits on a projection bound, else None.
@@ -678,6 +814,7 @@ class MracController:
         controller adapts again (from the estimates saved, the nominal ones after a suspension).
         """
         self._adapt = False
+        self._suspended = True
         self._const[C_FLAGS, 1] = 0.0
         self._excited = 0
         self.reset_parameters()
@@ -714,6 +851,7 @@ class MracController:
             "last_command_b": state[S_COMMAND].tolist(),
             "last_achieved_b": state[S_ACHIEVED].tolist() if state[S_FLAGS, 1] else None,
             "rest_s": state[S_REST].tolist(),
+            "noise_m2": state[S_NOISE].tolist(),
         }
 
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
@@ -731,6 +869,9 @@ class MracController:
             rest = floats3("rest_s", state.get("rest_s", [self._config.entry_rest_s] * 3))
             if min(rest) < 0.0:
                 raise ValueError(f"rest_s must be >= 0, got {list(rest)}")
+            noise = floats3("noise_m2", state.get("noise_m2", [s * s for s in self._config.noise_reference]))
+            if min(noise) < 0.0:
+                raise ValueError(f"noise_m2 must be >= 0, got {list(noise)}")
         except (KeyError, TypeError, ValueError) as error:
             raise ValueError(f"invalid MRAC state: {error}") from None
         const = self._const
@@ -739,7 +880,9 @@ class MracController:
         m0, m1, m2 = (min(max(a2[i], lo2[i]), hi2[i]) for i in range(3))
         ours[S_A2] = (m0, m1, m2)
         self._set_mass(m0, m1, m2)
-        ours[S_A1] = [min(max(a1[i], lo1[i]), hi1[i]) for i in range(3)]
+        beta1 = self._beta1
+        ours[S_A1] = [min(max(a1[i], lo1[i]), hi1[i], lo1[i] + DAMPING_MARGIN * ours[S_A2, i] * beta1[i])
+                      for i in range(3)]
         ours[S_Y_M] = (y_m[0], y_m[1], ssa(y_m[2]))
         ours[S_YD_M] = yd_m
         ours[S_COMMAND] = command
@@ -747,4 +890,5 @@ class MracController:
         ours[S_FLAGS, 1] = float(achieved is not None)
         ours[S_FLAGS, 0] = float(initialised)
         ours[S_REST] = rest
+        ours[S_NOISE] = noise
 

@@ -353,6 +353,10 @@ class PidController:
             pid_step(dt, eta, nu, bias, wind, *vectors, mask, self._structure, self._gains, self._state, out)
         return ControlOutput(out[0:3], out[3:6], out[6:9], None)
 
+    def tracked_pose_n(self, reference: Reference) -> np.ndarray:
+        """The pose the vessel is made to follow: the guidance's η_d in NED [m, m, rad] (as given)."""
+        return reference.eta_d_n
+
     def notify_achieved(self, tau_achieved_b: np.ndarray) -> None:
         """The force the allocator could deliver for the last command ``[N, N, N·m]`` (anti-windup)."""
         self._state[P_ACHIEVED] = vector3("tau_achieved_b", tau_achieved_b)

@@ -787,6 +787,7 @@ class Daemon:
                                                      weights=estimate.weights,
                                                      omega_hat_rad_s=estimate.omega_hat_rad_s))
         mrac = out.mrac
+        adaptive = self.controller.mrac
         reference = out.reference
         pub["control"].put(schemas.control_payload(
             t_s=t_s, seq=seq, controller=self.config.control.kind, tau_b=out.tau_b, setpoint_n=out.setpoint_n,
@@ -795,7 +796,9 @@ class Daemon:
             mrac_mass=None if mrac is None else [mrac.get("mass_surge_kg"), mrac.get("mass_sway_kg"),
                                                  mrac.get("inertia_yaw_kgm2")],
             mrac_damping=None if mrac is None else [mrac.get("damping_surge_nspm"), mrac.get("damping_sway_nspm"),
-                                                    mrac.get("damping_yaw_nmsprad")]))
+                                                    mrac.get("damping_yaw_nmsprad")],
+            mrac_nominal=None if mrac is None or adaptive is None else adaptive.config.mass_nominal,
+            mrac_state=None if mrac is None or adaptive is None else adaptive.adaptation_states()))
         pub["status"].put(self._status_payload(t_s, seq))
 
     def _status_payload(self, t_s: float, seq: int) -> bytes:

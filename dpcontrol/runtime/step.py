@@ -213,7 +213,6 @@ class DpController:
         self._delivered_thrust_n = np.zeros(n)
         self._delivered_azimuth_rad = np.zeros(n)
         self._zero3 = np.zeros(3)
-        self._tracked_n = np.zeros(3)  # the pose the deviation alarms measure from (MRAC: y_M)
         self._fallback_reason = ""
         self._engaged_once = False
         self._shortfall_since: float | None = None
@@ -298,6 +297,11 @@ class DpController:
                 detail = "; ".join([*refusals, in_force, *notes])
                 self.recent_requests.append(RequestOutcome(seq, t_s, "refused" if refusals else "applied", detail))
             self._taken.clear()
+
+    @property
+    def mrac(self) -> MracController | None:
+        """The MRAC when it is the position controller (its estimates and their state for the status), else None."""
+        return self._mrac
 
     @property
     def last_request(self) -> RequestOutcome | None:
@@ -437,15 +441,11 @@ class DpController:
         self._capability_alarm(t_s)
         reference = out.reference
         estimate = out.estimate
-        tracked = None if reference is None else reference.eta_d_n
-        mrac = out.mrac
-        if mrac is not None and tracked is not None:
-            # MRAC makes the vessel follow its reference model y_M (seed 003 eq. (15)), which trails η_d by
-            # design (8.7 m in the tanker's 20 m move): the vessel strays from y_M, not from η_d
-            tracked = self._tracked_n
-            tracked[0] = mrac["ref_model_north_m"]
-            tracked[1] = mrac["ref_model_east_m"]
-            tracked[2] = mrac["ref_model_heading_rad"]
+        # the vessel strays from the pose its controller makes it follow (η_d; an MRAC on seed 003's own reference
+        # model: y_M, which trails η_d)
+        tracked = None
+        if reference is not None:
+            tracked = reference.eta_d_n if self.controller is None else self.controller.tracked_pose_n(reference)
         self.deviation.update(t_s, self.mode.value, None if estimate is None else estimate.eta_hat_n, tracked)
         if clock:
             t5 = clock()

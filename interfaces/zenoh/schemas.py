@@ -62,7 +62,9 @@ Schemas (version 1; ``?`` = may be ``null``)
     setpoint?: {north_m?, east_m?, heading_rad?}
     reference?: {north_m?, east_m?, heading_rad?, surge_mps?, sway_mps?, yaw_rate_radps?}
     tau_b?, tau_achieved_b?, shortfall_b?: {x_n?, y_n?, n_nm?}
-    mrac?: {mass: {surge_kg?, sway_kg?, yaw_kgm2?}, damping: {surge_kgps?, sway_kgps?, yaw_kgm2ps?}}
+    mrac?: {mass: {surge_kg?, sway_kg?, yaw_kgm2?}, damping: {surge_kgps?, sway_kgps?, yaw_kgm2ps?},
+            nominal (optional): {surge_kg?, sway_kg?, yaw_kgm2?},
+            state (optional): {surge, sway, yaw} each adapting | frozen | suspended | fixed}
 
 ``dpcontrol.status/1``::
 
@@ -113,6 +115,8 @@ from interfaces.messages import Rejected
 MODES: tuple[str, ...] = ("standby", "auto_heading", "auto_position")
 # what became of an operator request (the status's ``request.outcome``)
 REQUEST_OUTCOMES: tuple[str, ...] = ("applied", "refused")
+#: What an MRAC mass estimate does (dpcontrol.control.mrac.ADAPTATION_STATES; interfaces import nothing upward).
+MRAC_STATES: tuple[str, ...] = ("adapting", "frozen", "suspended", "fixed")
 SENSOR_STATES: tuple[str, ...] = ("ok", "waiting", "stale", "frozen", "rejected", "isolated", "invalid",
                                   "disconnected")
 SEVERITIES: tuple[str, ...] = ("info", "warning", "alarm", "critical")
@@ -479,7 +483,10 @@ CONTROL = Schema("dpcontrol.control", 1, Record({
     "mrac": Record({
         "mass": Record({"surge_kg": _positive(), "sway_kg": _positive(), "yaw_kgm2": _positive()}),
         "damping": Record({"surge_kgps": _positive(), "sway_kgps": _positive(), "yaw_kgm2ps": _positive()}),
-    }, nullable=True),
+        "nominal": Record({"surge_kg": _positive(), "sway_kg": _positive(), "yaw_kgm2": _positive()}),
+        "state": Record({"surge": Text(choices=MRAC_STATES), "sway": Text(choices=MRAC_STATES),
+                         "yaw": Text(choices=MRAC_STATES)}),
+    }, optional=("nominal", "state"), nullable=True),
 }))
 
 _REQUEST_OUTCOME = Record({"seq": Integer(0, _MAX_SEQ), "t_s": Number(0.0, _MAX_TIME_S),
@@ -1066,7 +1073,8 @@ def mmae_payload(*, t_s: float, seq: int, omegas_rad_s: Any, weights: Any, omega
 
 def control_payload(*, t_s: float, seq: int, controller: str, tau_b: Any, setpoint_n: Any = None,
                     reference_n: Any = None, reference_nu_b: Any = None, tau_achieved_b: Any = None,
-                    shortfall_b: Any = None, mrac_mass: Any = None, mrac_damping: Any = None) -> bytes:
+                    shortfall_b: Any = None, mrac_mass: Any = None, mrac_damping: Any = None,
+                    mrac_nominal: Any = None, mrac_state: Any = None) -> bytes:
     """Encode the controller state.
 
     Parameters
@@ -1086,6 +1094,11 @@ def control_payload(*, t_s: float, seq: int, controller: str, tau_b: Any, setpoi
     mrac_mass, mrac_damping : array_like, shape (3,), optional
         MRAC estimates of mass ``[kg, kg, kg·m²]`` and linear damping ``[kg/s, kg/s, kg·m²/s]``
         per DOF (seed 003); ``mrac`` is ``null`` when both are omitted.
+    mrac_nominal : array_like, shape (3,), optional
+        The nominal masses the estimates start from [kg, kg, kg·m²].
+    mrac_state : sequence of 3 str, optional
+        What each mass estimate does (:data:`MRAC_STATES`: adapting, frozen — nothing to learn from —, suspended
+        by the supervision, fixed by configuration).
     """
     reference = None
     if reference_n is not None or reference_nu_b is not None:
@@ -1100,6 +1113,10 @@ def control_payload(*, t_s: float, seq: int, controller: str, tau_b: Any, setpoi
                 or {"surge_kg": None, "sway_kg": None, "yaw_kgm2": None},
                 "damping": _vec3(mrac_damping, ("surge_kgps", "sway_kgps", "yaw_kgm2ps"))
                 or {"surge_kgps": None, "sway_kgps": None, "yaw_kgm2ps": None}}
+        if mrac_nominal is not None:
+            mrac["nominal"] = _vec3(mrac_nominal, ("surge_kg", "sway_kg", "yaw_kgm2"))
+        if mrac_state is not None:
+            mrac["state"] = dict(zip(("surge", "sway", "yaw"), mrac_state, strict=True))
     return _encode({"schema": CONTROL.id, "t_s": float(t_s), "seq": int(seq), "controller": controller,
                     "setpoint": _pose_dict(setpoint_n), "reference": reference,
                     "tau_b": _vec3(tau_b, _FORCE), "tau_achieved_b": _vec3(tau_achieved_b, _FORCE),

@@ -23,6 +23,11 @@ from dpcontrol.models.vessels import SHUTTLE_TANKER, SHUTTLE_TANKER_FULL, SUPPLY
 SURGE = (True, False, False)
 
 
+def model_driven(config: MracConfig) -> MracConfig:
+    """``config`` on seed 003's reference model (15) driven by η_d (``Reference.hold`` makes it move), SISO laws."""
+    return dataclasses.replace(config, reference="model", coupling=False, noise_reference=(0.0, 0.0, 0.0))
+
+
 @functools.cache
 def offloading(adaptive: bool):
     """Seed 003's 12 h loading, single-DOF surge, dt = 1 s (corrections ±20 m every 30 min)."""
@@ -94,9 +99,20 @@ def test_lyapunov_matrix_and_pd_equivalence_of_eq_25() -> None:
     e = out.error_b
     ed = out.velocity_error_b
     ydd = beta0 * (np.zeros(3) - y_m) - beta1 * yd_m
-    np.testing.assert_allclose(out.tau_b, -p * e - d * ed + m * ydd + c * nu, rtol=1e-12)
+    # the multivariable law: the full mass matrix (M₂₃) multiplies z = ÿ_M − β₁ė − β₀e (at rest, no Coriolis)
+    full = np.diag(m)
+    full[1, 2] = full[2, 1] = config.mass_coupling_nominal
+    assert config.mass_coupling_nominal == pytest.approx(SUPPLY.mass_matrix[1, 2])
+    # ... and the damping is fed forward as the PD's D ν (the off-diagonal D₂₃, D₃₂ at nominal)
+    np.testing.assert_allclose(out.tau_b, full @ (ydd - beta1 * ed - beta0 * e) + SUPPLY.damping_matrix @ nu,
+                               rtol=1e-12)
     np.testing.assert_allclose(p, m * beta0)
     np.testing.assert_allclose(d, m * beta1)
+    # three SISO loops as seed 003 writes them (coupling: false)
+    siso = MracController(dataclasses.replace(config, coupling=False), adapt=False)
+    siso.step(0.1, np.zeros(3), np.zeros(3), None, Reference.hold(np.zeros(3)))
+    out = siso.step(0.1, eta, nu, None, Reference.hold(np.zeros(3)))
+    np.testing.assert_allclose(out.tau_b, -p * out.error_b - d * out.velocity_error_b + m * ydd + c * nu, rtol=1e-12)
 
 
 def _ideal_surge_adaptation(config: MracConfig, guidance: ReferenceModel | None, hours: float = 4.0
@@ -149,7 +165,7 @@ def test_default_gains_adapt_through_the_guidance_as_fast_as_through_steps() -> 
 
 
 def test_saturation_freezes_adaptation_and_projection_bounds_the_estimates() -> None:
-    config = dataclasses.replace(default_mrac_config(SUPPLY), entry_rest_s=0.0)  # (learning at once)
+    config = model_driven(dataclasses.replace(default_mrac_config(SUPPLY), entry_rest_s=0.0))  # (learning at once)
     controller = MracController(config)
     controller.step(0.1, np.zeros(3), np.zeros(3), None, Reference.hold(np.zeros(3)))
     ref = Reference.hold(np.array([50.0, -30.0, 1.0]))  # makes the reference model accelerate
@@ -170,7 +186,7 @@ def test_saturation_freezes_adaptation_and_projection_bounds_the_estimates() -> 
 
 
 def test_an_estimate_on_its_bound_is_reported_and_suspension_restores_the_fixed_pd() -> None:
-    config = dataclasses.replace(default_mrac_config(SUPPLY), entry_rest_s=0.0)  # (learning at once)
+    config = model_driven(dataclasses.replace(default_mrac_config(SUPPLY), entry_rest_s=0.0))  # (learning at once)
     controller = MracController(config)
     assert controller.mass_at_bound() is None
     state = controller.state_dict()
@@ -199,7 +215,7 @@ def test_an_estimate_on_its_bound_is_reported_and_suspension_restores_the_fixed_
 
 
 def test_nothing_is_learnt_after_an_entry_until_the_reference_has_rested() -> None:
-    config = default_mrac_config(SUPPLY)
+    config = model_driven(default_mrac_config(SUPPLY))
     period = config.natural_period_s[0]
     assert config.entry_rest_s == pytest.approx(period)  # the default design: one reference-model period
     assert default_mrac_config(SUPPLY, step_driven=True).entry_rest_s == 0.0  # seed 003's step study as written
@@ -258,7 +274,7 @@ def test_sigma_modification_leaks_back_to_nominal_exactly() -> None:
 
 
 def test_reference_model_is_bumpless_heading_safe_and_restartable() -> None:
-    config = default_mrac_config(SUPPLY)
+    config = model_driven(default_mrac_config(SUPPLY))
     a = MracController(config)
     eta = np.array([10.0, 20.0, math.radians(179.0)])
     nu = np.array([0.2, 0.0, 0.0])
@@ -303,7 +319,7 @@ def test_config_validation() -> None:
 
 
 def test_adapt_and_regressor_keys_select_the_fixed_pd_and_the_law() -> None:
-    fixed = control_config_from_mapping({"kind": "mrac", "adapt": False}, SHUTTLE_TANKER)
+    fixed = control_config_from_mapping({"kind": "mrac", "adapt": False, "reference": "model"}, SHUTTLE_TANKER)
     assert isinstance(fixed, MracConfig) and fixed.adapt is False and fixed.regressor == "reference"
     controller = make_controller(fixed)
     assert isinstance(controller, MracController) and not controller.adapting
@@ -322,3 +338,88 @@ def test_adapt_and_regressor_keys_select_the_fixed_pd_and_the_law() -> None:
     assert controller.mass_hat.tolist() == list(fixed.mass_nominal)
     assert out.parameters is not None and 0.0 < out.parameters["ref_model_north_m"] < 20.0
     assert not any(controller.excited)
+
+
+def _coupled_moves(config: MracConfig, vessel: Any, moves: int = 24, dt: float = 0.5) -> MracController:
+    """Perfect state, no waves: the 3-DOF rigid body M ν̇ + C(ν)ν + D ν = τ (full M with M₂₃, Fossen's C for a
+    symmetric M) through ``moves`` set-point moves of 0.08 L and 10° together, driven by the vessel's guidance."""
+    controller = MracController(config)
+    guidance = ReferenceModel(default_reference_config(vessel))
+    mass, damping = vessel.mass_matrix, vessel.damping_matrix
+    inverse = np.linalg.inv(mass)
+    eta = np.zeros(3)
+    nu = np.zeros(3)
+    guidance.reset(eta)
+    interval = 3.0 * max(config.natural_period_s) + 60.0
+    step = 0.08 * vessel.length_m
+    for k in range(round((moves + 1) * interval / dt)):
+        n = int(k * dt // interval)
+        target = np.array([step * (n % 2), step * ((n // 2) % 2), math.radians(10.0) * (n % 2)])
+        reference = guidance.step(dt, target)
+        out = controller.step(dt, eta, nu, None, reference)
+        controller.notify_achieved(out.tau_b)
+        u, v, r = nu
+        coriolis = np.array([-(mass[1, 1] * v + mass[1, 2] * r) * r, mass[0, 0] * u * r,
+                             (mass[1, 1] * v + mass[1, 2] * r) * u - mass[0, 0] * u * v])
+        nu = nu + dt * inverse @ (out.tau_b - coriolis - damping @ nu)
+        c, s = math.cos(eta[2]), math.sin(eta[2])
+        eta = eta + dt * np.array([c * nu[0] - s * nu[1], s * nu[0] + c * nu[1], nu[2]])
+    return controller
+
+
+def test_the_multivariable_law_learns_nothing_false_from_moves_that_turn() -> None:
+    """The supply vessel (M₂₃ = −3.4e7 kg·m) with a perfect state, repeated moves of 0.08 L and 10° together: the
+    multivariable law (full mass matrix, rotation and Coriolis terms in the control law and the regressor) keeps its
+    estimates at the true masses; seed 003's SISO loops (coupling: false) take the sway–yaw coupling and the
+    rotation of the body axes for inertia."""
+    config = dataclasses.replace(default_mrac_config(SUPPLY), entry_rest_s=0.0)
+    coupled = _coupled_moves(config, SUPPLY)
+    np.testing.assert_allclose(coupled.mass_hat / np.array(config.mass_nominal), 1.0, atol=0.03)
+    siso = _coupled_moves(dataclasses.replace(config, coupling=False), SUPPLY)
+    assert np.max(np.abs(siso.mass_hat / np.array(config.mass_nominal) - 1.0)) > 0.1
+
+
+def test_one_reference_the_guidance_is_what_the_mrac_tracks() -> None:
+    """The default MRAC takes the guidance's η_d, η̇_d, η̈_d as y_M, ẏ_M, ÿ_M: the pose it tracks (the deviation
+    alarms' zero) is η_d, with no second lag; seed 003's own reference model (``reference: model``) trails it."""
+    config = default_mrac_config(SUPPLY)
+    assert config.reference == "guidance"
+    guided = MracController(config)
+    lagging = MracController(model_driven(config))
+    guidance = ReferenceModel(default_reference_config(SUPPLY))
+    guidance.reset(np.zeros(3))
+    behind = 0.0
+    for _ in range(600):
+        reference = guidance.step(0.5, np.array([15.0, 0.0, 0.2]))
+        guided.step(0.5, np.zeros(3), np.zeros(3), None, reference)
+        lagging.step(0.5, np.zeros(3), np.zeros(3), None, reference)
+        np.testing.assert_array_equal(guided.tracked_pose_n(reference), reference.eta_d_n)
+        behind = max(behind, reference.eta_d_n[0] - lagging.tracked_pose_n(reference)[0])
+    assert behind > 3.0  # metres behind the guidance in a 15 m move (the second lag the guided reference removes)
+    assert guided.adaptation_states() == ("frozen",) * 3  # adapting, but nothing to learn (the entry rest)
+    fixed = MracController(config, adapt=False)
+    assert fixed.adaptation_states() == ("fixed",) * 3
+    guided.suspend_adaptation()
+    assert guided.adaptation_states() == ("suspended",) * 3
+
+
+def test_no_admissible_estimate_leaves_the_frozen_loop_without_damping() -> None:
+    """With damping adaptation on and the errors driving â₁ up and â₂ down to its bound, â₁ stays below
+    c_min + 0.9 â₂β₁: the frozen loop's damping c + â₂β₁ − â₁ stays positive for a hull with at least c_min."""
+    for vessel in (SUPPLY, SHUTTLE_TANKER):
+        base = default_mrac_config(vessel)
+        config = model_driven(dataclasses.replace(base, entry_rest_s=0.0, adaptation_gain_damping=tuple(
+            1e3 * g for g in base.adaptation_gain_mass), accel_threshold=(0.0, 0.0, 0.0),
+            velocity_threshold=(0.0, 0.0, 0.0)))
+        controller = MracController(config)
+        controller.step(0.1, np.zeros(3), np.zeros(3), None, Reference.hold(np.zeros(3)))
+        ref = Reference.hold(np.array([50.0, -30.0, 1.0]))
+        for k in range(3000):
+            out = controller.step(0.1, np.array([-5.0, 3.0, -0.1]) * (1 + k % 7), np.array([2.0, -1.0, 0.05]), None,
+                                  ref)
+            controller.notify_achieved(out.tau_b)
+        c_min = config.damping_bounds_factor[0] * np.array(config.damping_nominal)
+        damping = c_min + controller.mass_hat * config.beta1 - controller.damping_hat
+        assert np.all(damping > 0.0), (vessel.name, controller.mass_hat, controller.damping_hat)
+    with pytest.raises(ValueError, match="damping_nominal"):
+        dataclasses.replace(default_mrac_config(SUPPLY), damping_bounds_factor=(0.0, 20.0))
