@@ -198,13 +198,21 @@ def main() -> int:
     parser.add_argument("--jobs", type=int, default=1, help="worker processes")
     parser.add_argument("--json", type=Path, help="write every run's numbers here")
     parser.add_argument("--mrac", type=json.loads, default=None, help="the MRAC's control section (JSON)")
+    parser.add_argument("--summarise", type=Path, help="print the tables of a --json file and exit")
     args = parser.parse_args()
     if args.mrac is not None:
         CONTROLLERS["mrac"] = args.mrac
     controllers = args.controllers.split(",")
-    tasks = [(v, s, c, CONTROLLERS[c]) for v in (args.vessels or list(VESSELS))
-             for s in range(args.first_seed, args.first_seed + args.seeds) for c in controllers]
-    rows: list[dict[str, Any]] = []
+    if args.summarise is not None:  # the tables of a finished (or interrupted) run
+        rows = json.loads(args.summarise.read_text(encoding="utf-8"))
+        for baseline in sorted({r["controller"] for r in rows} - {"mrac"}):
+            for line in summarise(rows, baseline):
+                print(line)
+        return 0
+    # seed by seed across the vessels: an interrupted campaign has covered every vessel alike
+    tasks = [(v, s, c, CONTROLLERS[c]) for s in range(args.first_seed, args.first_seed + args.seeds)
+             for v in (args.vessels or list(VESSELS)) for c in controllers]
+    rows = []
     with multiprocessing.get_context("spawn").Pool(args.jobs) as pool:
         for row in pool.imap_unordered(_task, tasks):
             rows.append(row)

@@ -290,9 +290,6 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
                 blocked |= 1 << j
                 continue  # the error is the saturation's, not a wrong mass: nothing learnt in this DOF
             s_bar = e_b[j] + const[C_G_RATIO, j] * ed_b[j]
-            # the error signal's mean square, moves and rests alike (exponential average over C_NOISE_TIME)
-            weight = dt / const[C_NOISE_TIME, j] if dt < const[C_NOISE_TIME, j] else 1.0
-            state[S_NOISE, j] += weight * (s_bar * s_bar - state[S_NOISE, j])
             excess = abs(s_bar) - const[C_DEAD_ZONE, j]
             signal[j] = const[C_G12, j] * math.copysign(excess, s_bar) if excess > 0.0 else 0.0
         # the regressor: column i = ∂τ/∂â₂ᵢ (rows: surge, sway, yaw) on the noise-free reference, with the
@@ -315,7 +312,7 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
             rows_known = True
             for j in range(3):
                 threshold = const[C_ACCEL, j]
-                value = phi[j, i] * const[C_A2_NOMINAL, i] / const[C_A2_NOMINAL, j]
+                value = phi[j, i] * (const[C_A2_NOMINAL, i] / const[C_A2_NOMINAL, j])
                 if threshold > 0.0:
                     energy += (value / threshold) ** 2
                 elif value != 0.0:
@@ -323,6 +320,14 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
             excitation[i] = energy
             if energy > 1.0 or not rows_known:
                 gates |= 1 << i
+        if gates == 0:
+            # the error signal's mean square while the reference rests (exponential average over C_NOISE_TIME): the
+            # noise the adaptation would integrate; in a move the error is also the mass error it is to learn from
+            for j in range(3):
+                if not (blocked >> j) & 1:
+                    s_bar = e_b[j] + const[C_G_RATIO, j] * ed_b[j]
+                    weight = dt / const[C_NOISE_TIME, j] if dt < const[C_NOISE_TIME, j] else 1.0
+                    state[S_NOISE, j] += weight * (s_bar * s_bar - state[S_NOISE, j])
         if flags[2] == 0.0:  # seed 003's plant regressor v = z (the gating stays on the reference)
             for i in range(3):
                 phi[i, i] = z[i]

@@ -1,4 +1,4 @@
-"""MRAC-augmented PD controller (seed 003 eqs. (15)–(25)), one SISO loop per DOF.
+"""MRAC-augmented PD controller (seed 003 eqs. (15)–(25)), multivariable on the 3-DOF model.
 
 Per DOF (surge, sway, yaw) in the vessel-parallel frame, seed 003 writes the plant and the
 reference model as
@@ -6,9 +6,7 @@ reference model as
     m ÿ + c ẏ = u                                   (16)   (K = 0: no mooring)
     m_M ÿ_M + c_M ẏ_M + k_M y_M = u_c               (15)
 
-with β₀ = k_M/m_M = ω_M², β₁ = c_M/m_M = 2ζω_M (natural period 200 s and ζ = 1 by default). The
-reference model is driven by the guidance, ``u_c = k_M η_d`` (so ``y_M`` follows the guidance with
-the dynamics the adaptive loop makes the vessel match). With ``e = y − y_M``
+with β₀ = k_M/m_M = ω_M², β₁ = c_M/m_M = 2ζω_M. With ``e = y − y_M``
 
     z = ÿ_M − β₁ ė − β₀ e                           (17)
     u = â₂ z + â₁ ẏ,      v = [z, ẏ]ᵀ,  â = [â₂, â₁]ᵀ          (18)
@@ -23,6 +21,49 @@ with the estimated heading (``e_b = Rᵀ(ψ̂)(η̂ − y_M)``), the bias estima
 compensated as in the commercial PD (``τ = u − b̂``, seed 003 Fig. 5) and the optional wind
 feed-forward adds ``−τ̂_wind`` (seed 002 eq. (35)). ``G`` is solved once with
 :func:`scipy.linalg.solve_continuous_lyapunov`.
+
+One reference
+-------------
+Seed 003 drives its reference model (15) by the set-point itself; the runtime has a guidance
+(:class:`~dpcontrol.guidance.reference_model.ReferenceModel`, seed 003's model with speed and acceleration limits)
+between the operator and the controller. By default (``reference: guidance``) the guidance's η_d, η̇_d, η̈_d *are*
+y_M, ẏ_M, ÿ_M: the vessel follows the pose the operator sees, a move settles as under the PD, and the deviation
+alarms measure from η_d (:meth:`MracController.tracked_pose_n`). β₀, β₁ are then the PD's gains per unit mass:
+:func:`pd_equivalent_model` sets them from the vessel's default PD (``P = m β₀``, ``D = m β₁ − c``), so the MRAC
+frozen at its nominal parameters is that PD. ``reference: model`` keeps seed 003's own model (15) driven by η_d
+(``u_c = k_M η_d``), a second lag behind the guidance (8.7 m in the tanker's 20 m move); the single-DOF study of
+:mod:`dpcontrol.control.offloading_case` uses it, driven by the raw set-point steps.
+
+The multivariable law
+---------------------
+Seed 003 writes three SISO loops; the plant (its eq. (1)) couples them through M₂₆ (here M₂₃) and the rotation of
+the body axes. With ``coupling: true`` (default) the law is the desired-compensation adaptive law of Sadegh &
+Horowitz (1990) on the 3-DOF model, in the regressor form of Slotine & Li (1987):
+
+    ν_d = Rᵀ(ψ̂) ẏ_M,   ν̇_d = Rᵀ(ψ̂) ÿ_M − S(r_d) ν_d                         (the rotation term)
+    u = M̂ z + C(M̂, ν_d) ν_d + D̂ ν − b̂,   z = ν̇_d − β₁ė − β₀e                  (18), vector form
+    ⅆâ₂ᵢ/dt = −Γᵢ Σⱼ Φⱼᵢ (bᵀG xⱼ),   Φ = ∂u/∂â₂ on ν̇_d, ν_d                      (21), vector form
+
+with M̂ = [[â₁₁, 0, 0], [0, â₂₂, M̂₂₃], [0, M̂₂₃, â₃₃]], M̂₂₃ = M₂₃ √(â₂₂â₃₃/(M₂₂M₃₃)) (positive definite for every
+admissible estimate), Fossen's C(M, ν) for a symmetric M, and the off-diagonal damping fed forward at nominal
+(as the PD's D ν). Without the coupling terms the SISO laws take the sway–yaw coupling and the rotation for
+inertia: with a perfect state and repeated moves of 0.08 L and 10° the supply vessel's estimates ended 34–41 % high
+(``tests/unit/test_control_mrac.py``: the multivariable law stays within 3 %).
+
+Noise and normalisation
+-----------------------
+The estimate's scatter grows as Γ⟨s̄²⟩ (s̄ the error signal below): the gains designed for the tanker (whose error
+signal is ≈ 1–2 % of a typical move) let the noisier small vessels' estimates wander from bound to bound. Γ is
+therefore scaled on line by ``min(1, σ_ref² / ⟨s̄²⟩)`` per DOF, ``⟨s̄²⟩`` the error signal's mean square over
+``noise_time_s`` (two periods) while the reference rests (in a move the error is also the mass error to be learnt:
+measured there, a wrong mass slowed its own correction; the tanker's seed 003 excerpt then took three corrections
+instead of two), and ``σ_ref`` = 2 % of the typical move. The larger errors a move excites beyond the noise (thruster
+lag and limits) are met by the normalisation: the gradient is
+divided by ``1 + |Φ|²/|Φ_typ|²`` (the normalised gradient of Ioannou & Sun, *Robust Adaptive Control*, 1996), with
+|Φ_typ| the typical move's peak regressor: a larger or faster move teaches no faster than the design move
+(CyberShip II's quick turns had taken its yaw estimate from 1.4× to its 0.3× bound within one turn). The
+excitation gate is measured on the regressor column of each parameter, the Coriolis entries included, each row in
+its DOF's acceleration units.
 
 Robustness for a real sea
 -------------------------
@@ -48,8 +89,10 @@ from 1× to 3× the true mass in 12 h of station keeping). This implementation u
 * a **dead zone** on the normalised error signal ``s̄ = bᵀGx / g₁₂ = e + (g₂₂/g₁₂) ė`` [m or
   rad]: no adaptation while ``|s̄| ≤ d₀`` and ``s̄ − d₀·sign(s̄)`` outside (continuous);
 * **projection** of ``â₂`` onto ``[0.3, 5] × m_nominal`` and of ``â₁`` onto
-  ``[0, max(20 c_nominal, m_nominal β₁)]`` (physical bounds: a vessel neither loses 70 % of
-  its mass nor quintuples it), so that whatever drift is left stays bounded.
+  ``[0.5 c_nominal, max(20 c_nominal, m_nominal β₁)]`` (physical bounds: a vessel neither loses 70 % of
+  its mass nor quintuples it), and ``â₁ ≤ c_min + 0.9 â₂β₁`` (a half-plane in (â₂, â₁)): the frozen loop
+  ``m ë + (c + â₂β₁ − â₁) ė + â₂β₀ e = 0`` keeps its damping for every admissible estimate on a hull with at least
+  ``c_min = 0.5 c_nominal`` (the bound ``max(20 c, m β₁)`` alone allowed ``c + â₂β₁ − â₁ < 0`` at â₂'s lower bound).
 
 Gating and a dead zone rather than σ-modification are the default because the operation the
 controller is made for — loading a shuttle tanker, seed 003 — changes the mass by 2.66× while the
@@ -460,7 +503,8 @@ def reference_excitation(guidance: ReferenceModelConfig, natural_period_s: Tripl
 # Default tuning (see default_mrac_config): excitation ℓ = 0.08 L in surge/sway (≈ the 20 m
 # corrections of seed 003 for the 260 m tanker) and 10° in yaw, passed through the vessel's default
 # guidance; T_a = 0.1 natural periods for a step-driven model (the estimate settles within one
-# set-point correction) and 0.3 through the guidance (on the plant one correction's information is
+# set-point correction) and 0.15 through the guidance (0.3 before the normalisation, which slows a typical move's
+# learning by up to 2× at its peak; on the plant one correction's information is
 # noisy — estimator noise, wave drift — and averaging over ≈ 3 corrections halves the scatter of
 # the estimate while the 12 h loading changes the mass by only 4 % per correction); dead zone
 # 0.02 % of L (5 cm for the tanker) and 0.05° in yaw — above the LF-estimate noise the wave filter
@@ -468,7 +512,7 @@ def reference_excitation(guidance: ReferenceModelConfig, natural_period_s: Tripl
 _EXCITATION_PER_LENGTH = 0.08
 _EXCITATION_YAW_RAD = math.radians(10.0)
 _ADAPTATION_PERIODS = 0.1
-_ADAPTATION_PERIODS_GUIDED = 0.3
+_ADAPTATION_PERIODS_GUIDED = 0.15
 _DEAD_ZONE_PER_LENGTH = 2e-4
 _DEAD_ZONE_YAW_RAD = math.radians(0.05)
 _GATING_FRACTION = 0.05

@@ -99,6 +99,10 @@ class PlainMrac:
             signal = self.g12[i] * math.copysign(excess, s_bar) if excess > 0.0 else 0.0
             v2, v1 = (ydd_b[i], yd_b[i]) if cfg.regressor == "reference" else (z[i], nu[i])
             gm, gc = cfg.adaptation_gain_mass[i], cfg.adaptation_gain_damping[i]
+            # the normalised gradient: ÷ (1 + (ÿ_M / (20 a_min))²) (the typical move's peak is 20 gating thresholds)
+            threshold = cfg.accel_threshold[i]
+            scale = 1.0 / (1.0 + ((ydd_b[i] / threshold) ** 2 / 400.0 if threshold > 0.0 else 0.0))
+            gm, gc = gm * scale, gc * scale
             rate2 = -gm * v2 * signal if abs(ydd_b[i]) > cfg.accel_threshold[i] else 0.0
             rate1 = -gc * v1 * signal if abs(yd_b[i]) > cfg.velocity_threshold[i] else 0.0
             for values, gamma, rate, nominal in ((self.a2, gm, rate2, cfg.mass_nominal[i]),
