@@ -290,6 +290,10 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
                 blocked |= 1 << j
                 continue  # the error is the saturation's, not a wrong mass: nothing learnt in this DOF
             s_bar = e_b[j] + const[C_G_RATIO, j] * ed_b[j]
+            # the error signal's mean square, moves and rests alike (exponential average over C_NOISE_TIME): a move
+            # excites errors beyond the sensor noise (thruster lag and limits, the bias estimate lagging a turn)
+            weight = dt / const[C_NOISE_TIME, j] if dt < const[C_NOISE_TIME, j] else 1.0
+            state[S_NOISE, j] += weight * (s_bar * s_bar - state[S_NOISE, j])
             excess = abs(s_bar) - const[C_DEAD_ZONE, j]
             signal[j] = const[C_G12, j] * math.copysign(excess, s_bar) if excess > 0.0 else 0.0
         # the regressor: column i = ∂τ/∂â₂ᵢ (rows: surge, sway, yaw) on the noise-free reference, with the
@@ -320,14 +324,6 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
             excitation[i] = energy
             if energy > 1.0 or not rows_known:
                 gates |= 1 << i
-        if gates == 0:
-            # the error signal's mean square while the reference rests (exponential average over C_NOISE_TIME): the
-            # noise the adaptation would integrate; in a move the error is also the mass error it is to learn from
-            for j in range(3):
-                if not (blocked >> j) & 1:
-                    s_bar = e_b[j] + const[C_G_RATIO, j] * ed_b[j]
-                    weight = dt / const[C_NOISE_TIME, j] if dt < const[C_NOISE_TIME, j] else 1.0
-                    state[S_NOISE, j] += weight * (s_bar * s_bar - state[S_NOISE, j])
         if flags[2] == 0.0:  # seed 003's plant regressor v = z (the gating stays on the reference)
             for i in range(3):
                 phi[i, i] = z[i]

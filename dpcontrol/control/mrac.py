@@ -55,10 +55,10 @@ Noise and normalisation
 The estimate's scatter grows as Γ⟨s̄²⟩ (s̄ the error signal below): the gains designed for the tanker (whose error
 signal is ≈ 1–2 % of a typical move) let the noisier small vessels' estimates wander from bound to bound. Γ is
 therefore scaled on line by ``min(1, σ_ref² / ⟨s̄²⟩)`` per DOF, ``⟨s̄²⟩`` the error signal's mean square over
-``noise_time_s`` (two periods) while the reference rests (in a move the error is also the mass error to be learnt:
-measured there, a wrong mass slowed its own correction; the tanker's seed 003 excerpt then took three corrections
-instead of two), and ``σ_ref`` = 2 % of the typical move. The larger errors a move excites beyond the noise (thruster
-lag and limits) are met by the normalisation: the gradient is
+``noise_time_s`` (two periods), moves and rests alike — measured at rest only (where the sensors' noise is all
+there is) it missed the larger errors a move excites (thruster lag and limits, the bias estimate lagging a turn: the
+supply vessel's yaw inertia doubled in one 20° turn) — and ``σ_ref`` = 2 % of the typical move. The price: a large
+mass error inflates ⟨s̄²⟩ too and slows its own correction. The gradient is also
 divided by ``1 + |Φ|²/|Φ_typ|²`` (the normalised gradient of Ioannou & Sun, *Robust Adaptive Control*, 1996), with
 |Φ_typ| the typical move's peak regressor: a larger or faster move teaches no faster than the design move
 (CyberShip II's quick turns had taken its yaw estimate from 1.4× to its 0.3× bound within one turn). The
