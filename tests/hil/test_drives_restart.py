@@ -57,7 +57,9 @@ def test_a_restarted_plant_leaves_no_thruster_latched_and_dp_engages_again(tmp_p
         assert listeners[1].wait_ready(60.0, plant), (tmp_path / "plant2.log").read_text()
         time.sleep(BACK_S)
         answers = [subprocess.run([sys.executable, "-m", "dpcontrol.cli", "setpoint", "--vessel", wiring["vessel_id"],
-                                   "--connect", wiring["zenoh"], "--timeout", "30", "--mode", mode],
+                                   "--connect", wiring["zenoh"], "--timeout", "30", "--mode", mode,
+                                   # the demo's network is secured: the operator is its bridge console
+                                   "--tls-dir", wiring["tls_dir"], "--identity", "bridge"],
                                   capture_output=True, text=True, timeout=60.0, check=False)
                    for mode in ("standby", "auto_position")]
         time.sleep(1.0)
