@@ -43,8 +43,8 @@ import serial
 from nmea2000 import _canboat as canboat
 
 from interfaces.messages import LinkStatus, Measurement, Rejected, RejectedInput
-from interfaces.nmea2000.codec import FAST_PACKET_PGNS, FastPacketAssembler, Frame, N2kDecoder, n2k_source_name
-from interfaces.nmea2000.transport import RawFrame
+from interfaces.nmea2000.codec import FAST_PACKET_PGNS, FastPacketAssembler, Frame, N2kDecoder
+from interfaces.nmea2000.transport import N2kReaderThread, RawFrame
 
 logger = logging.getLogger(__name__)
 
@@ -96,7 +96,7 @@ class GatewayConfig:
         return match.group(1).strip("[]"), int(match.group(2))
 
 
-class N2kGatewayReader:
+class N2kGatewayReader(N2kReaderThread):
     """Background reader: gateway bytes → decoded NMEA 2000 events for a sink (see the module docstring).
 
     Parameters
@@ -107,59 +107,19 @@ class N2kGatewayReader:
         message is its whole payload (the gateway has joined the fast-packet frames).
     """
 
+    _words = ("gateway connected", "gateway reconnected after {failures} failure(s)",
+              "cannot reach the gateway: {error!r}", "gateway link lost: {error!r}")
+
     def __init__(self, gateway: GatewayConfig, sink: Callable[[N2kEvent], Any], *, clock: Clock = time.monotonic,
                  source_names: Mapping[int, str] | None = None, decoder: N2kDecoder | None = None,
                  deliver_raw: bool = False, poll_s: float = 0.1,
                  backoff_s: tuple[float, float] = (0.05, 2.0)) -> None:
-        if not poll_s > 0.0 or not 0.0 < backoff_s[0] <= backoff_s[1]:
-            raise ValueError("poll_s must be > 0 and 0 < backoff_s[0] <= backoff_s[1]")
+        super().__init__(gateway.name, sink, clock=clock, source_names=source_names, decoder=decoder,
+                         deliver_raw=deliver_raw, poll_s=poll_s, backoff_s=backoff_s)
         self.gateway = gateway
-        self.sink = sink
-        self.clock = clock
-        self.decoder = decoder or N2kDecoder()
-        self.deliver_raw = deliver_raw
-        self.poll_s = poll_s
-        self.backoff_s = backoff_s
-        self.counters: Counter[str] = Counter()
-        self._names = dict(source_names or {})
-        self._stop = threading.Event()
-        self._connected = threading.Event()
-        self._thread: threading.Thread | None = None
         self._link_handle: Any = None
         self._buffer = bytearray()
         self._codec: Any = None
-
-    # ---- life cycle (as N2kCanReader) -------------------------------------------------------
-
-    def start(self) -> N2kGatewayReader:
-        """Start the reader thread (connecting happens in it). Returns ``self``."""
-        if self._thread is not None:
-            raise RuntimeError("reader already started")
-        self._thread = threading.Thread(target=self._run, name=f"n2k-gateway {self.gateway.name}", daemon=True)
-        self._thread.start()
-        return self
-
-    def wait_connected(self, timeout_s: float) -> bool:
-        """Block until the gateway is connected (or ``timeout_s`` passes); returns whether it is."""
-        return self._connected.wait(timeout_s)
-
-    @property
-    def connected(self) -> bool:
-        return self._connected.is_set()
-
-    def close(self, timeout_s: float = 3.0) -> None:
-        """Stop the thread and close the connection; returns within about ``timeout_s + poll_s``."""
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout_s + self.poll_s)
-            if self._thread.is_alive():
-                logger.warning("n2k gateway reader did not stop within %.1f s", timeout_s)
-
-    def __enter__(self) -> N2kGatewayReader:
-        return self.start()
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     # ---- connection ---------------------------------------------------------------------------
 
@@ -203,81 +163,22 @@ class N2kGatewayReader:
             with contextlib.suppress(Exception):
                 handle.close()
 
-    def _link(self, connected: bool, detail: str) -> None:
-        if connected:
-            self._connected.set()
-        else:
-            self._connected.clear()
-        self._emit(LinkStatus(self.clock(), self.gateway.name, connected, detail))
+    def _open_link(self) -> None:
+        self._link_handle = self._open()
 
-    def _run(self) -> None:
-        backoff = self.backoff_s[0]
-        failures = 0
+    def _receive(self) -> bytes | None:
+        return self._read()
+
+    def _handle(self, item: bytes, t_s: float) -> None:
+        self.counters["bytes_received"] += len(item)
         try:
-            while not self._stop.is_set():
-                if self._link_handle is None:
-                    try:
-                        self._link_handle = self._open()
-                    except Exception as error:  # refused, no such device, address in use ...
-                        self.counters["open_errors"] += 1
-                        if failures == 0:
-                            self._link(False, f"cannot reach the gateway: {error!r}")
-                        failures += 1
-                        self._stop.wait(backoff)
-                        backoff = min(2.0 * backoff, self.backoff_s[1])
-                        continue
-                    if failures:
-                        self.counters["reconnects"] += 1
-                    self._link(True, "gateway connected" if not failures
-                               else f"gateway reconnected after {failures} failure(s)")
-                    failures = 0
-                try:
-                    data = self._read()
-                except Exception as error:  # reset, EOF, device unplugged
-                    self.counters["link_errors"] += 1
-                    self._drop_link()
-                    failures += 1
-                    self._link(False, f"gateway link lost: {error!r}")
-                    self._stop.wait(backoff)
-                    backoff = min(2.0 * backoff, self.backoff_s[1])
-                    continue
-                backoff = self.backoff_s[0]
-                t_s = self.clock()
-                if data is None:
-                    if self.decoder.assembler.pending:
-                        self._deliver(self.decoder.expire(t_s), t_s)
-                    continue
-                self.counters["bytes_received"] += len(data)
-                try:
-                    self._on_bytes(data, t_s)
-                except Exception as error:  # the decoders are fuzzed not to raise; belt and braces for the thread
-                    self.counters["decoder_errors"] += 1
-                    logger.exception("n2k gateway decoding raised")
-                    self._emit(RejectedInput(t_s, "n2k:?", Rejected("decode_error", repr(error), data[:_RAW_KEEP])))
-        finally:
-            self._drop_link()
-            self._connected.clear()
+            self._on_bytes(item, t_s)
+        except Exception as error:  # the decoders are fuzzed not to raise; belt and braces for the thread
+            self.counters["decoder_errors"] += 1
+            logger.exception("n2k gateway decoding raised")
+            self._emit(RejectedInput(t_s, "n2k:?", Rejected("decode_error", repr(error), item[:_RAW_KEEP])))
 
     # ---- decoding -----------------------------------------------------------------------------
-
-    def _emit(self, event: N2kEvent) -> None:
-        try:
-            self.sink(event)
-        except Exception:  # a broken consumer must not stop the reader
-            self.counters["sink_errors"] += 1
-            logger.exception("n2k gateway sink raised")
-
-    def _name(self, address: int) -> str:
-        name = self._names.get(address)
-        return name if name is not None else n2k_source_name(address)
-
-    def _deliver(self, results: Iterable[Any], t_s: float) -> None:
-        for result in results:
-            name = self._name(result.source_address)
-            if isinstance(result.item, Rejected):
-                self._emit(RejectedInput(t_s, name, result.item))
-            else:
-                self._emit(Measurement(t_s, name, result.item))
 
     def _reject(self, t_s: float, reason: str, detail: str, raw: bytes) -> None:
         self.counters["rejected." + reason] += 1

@@ -154,7 +154,170 @@ def shutdown_bus(bus: can.BusABC, timeout_s: float = 2.0) -> None:
         worker.join(timeout_s)
 
 
-class N2kCanReader:
+class N2kReaderThread:
+    """What every NMEA 2000 reader shares (a CAN bus, a gateway): the reader thread and its life cycle, the
+    reconnecting loop with doubling back-off, link-status events, and delivery of decoded results to the sink.
+
+    A subclass says how its link opens (:meth:`_open_link`), how it receives (:meth:`_receive`: an item, or
+    None after ``poll_s`` of silence; raises on a lost link), what it does with an item (:meth:`_handle`), how
+    it closes (:meth:`_drop_link`), and the words of its link events (:attr:`_words`).
+
+    Parameters
+    ----------
+    link_name : str
+        The ``LinkStatus.source`` of its link events (the transport's name).
+    sink, clock, source_names, decoder, deliver_raw, poll_s, backoff_s
+        As for :class:`N2kCanReader`.
+    """
+
+    #: link-event texts: (open, reopened, cannot open, lost) — formatted with ``failures`` / ``error``
+    _words = ("link open", "link reopened after {failures} failure(s)", "cannot open: {error!r}",
+              "link error: {error!r}")
+    _error_counter = "link_errors"
+
+    def __init__(self, link_name: str, sink: Callable[[N2kEvent], Any], *, clock: Clock = time.monotonic,
+                 source_names: Mapping[int, str] | None = None, decoder: N2kDecoder | None = None,
+                 deliver_raw: bool = False, poll_s: float = 0.1,
+                 backoff_s: tuple[float, float] = (0.05, 2.0)) -> None:
+        if not poll_s > 0.0 or not 0.0 < backoff_s[0] <= backoff_s[1]:
+            raise ValueError("poll_s must be > 0 and 0 < backoff_s[0] <= backoff_s[1]")
+        self.link_name = link_name
+        self.sink = sink
+        self.clock = clock
+        self.decoder = decoder or N2kDecoder()
+        self.deliver_raw = deliver_raw
+        self.poll_s = poll_s
+        self.backoff_s = backoff_s
+        self.counters: Counter[str] = Counter()
+        self._names = dict(source_names or {})
+        self._stop = threading.Event()
+        self._connected = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    # ---- life cycle ----------------------------------------------------------------------
+
+    def start(self) -> Any:
+        """Start the reader thread (opening the link happens in it). Returns ``self``."""
+        if self._thread is not None:
+            raise RuntimeError("reader already started")
+        self._thread = threading.Thread(target=self._run, name=f"n2k-reader {self.link_name}", daemon=True)
+        self._thread.start()
+        return self
+
+    def wait_connected(self, timeout_s: float) -> bool:
+        """Block until the link is open (or ``timeout_s`` passes); returns whether it is."""
+        return self._connected.wait(timeout_s)
+
+    @property
+    def connected(self) -> bool:
+        """Whether the link is currently open."""
+        return self._connected.is_set()
+
+    def close(self, timeout_s: float = 3.0) -> None:
+        """Stop the thread and close the link; returns within about ``timeout_s + poll_s``."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout_s + self.poll_s)
+            if self._thread.is_alive():
+                logger.warning("n2k reader %s did not stop within %.1f s", self.link_name, timeout_s)
+
+    def __enter__(self) -> Any:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # ---- what a link does (subclasses) -------------------------------------------------------
+
+    def _open_link(self) -> None:
+        raise NotImplementedError
+
+    def _on_open(self) -> None:
+        """Called each time the link has opened (e.g. to ask the bus for address claims)."""
+
+    def _receive(self) -> Any:
+        raise NotImplementedError
+
+    def _handle(self, item: Any, t_s: float) -> None:
+        raise NotImplementedError
+
+    def _drop_link(self) -> None:
+        raise NotImplementedError
+
+    # ---- thread ---------------------------------------------------------------------------
+
+    def _emit(self, event: N2kEvent) -> None:
+        try:
+            self.sink(event)
+        except Exception:  # a broken consumer must not stop the reader
+            self.counters["sink_errors"] += 1
+            logger.exception("n2k reader sink raised")
+
+    def _link(self, connected: bool, detail: str) -> None:
+        if connected:
+            self._connected.set()
+        else:
+            self._connected.clear()
+        self._emit(LinkStatus(self.clock(), self.link_name, connected, detail))
+
+    def _name(self, address: int) -> str:
+        name = self._names.get(address)
+        return name if name is not None else n2k_source_name(address)
+
+    def _deliver(self, results: Iterable[Any], t_s: float) -> None:
+        for result in results:
+            name = self._name(result.source_address)
+            if isinstance(result.item, Rejected):
+                self._emit(RejectedInput(t_s, name, result.item))
+            else:
+                self._emit(Measurement(t_s, name, result.item))
+
+    def _run(self) -> None:
+        opened, reopened, cannot_open, lost = self._words
+        backoff = self.backoff_s[0]
+        failures = 0
+        try:
+            while not self._stop.is_set():
+                if not self.connected:
+                    try:
+                        self._open_link()
+                    except Exception as error:  # any driver or socket error: report, back off, retry
+                        self.counters["open_errors"] += 1
+                        if failures == 0:
+                            self._link(False, cannot_open.format(error=error))
+                        failures += 1
+                        self._stop.wait(backoff)
+                        backoff = min(2.0 * backoff, self.backoff_s[1])
+                        continue
+                    if failures:
+                        self.counters["reconnects"] += 1
+                    self._link(True, reopened.format(failures=failures) if failures else opened)
+                    failures = 0
+                    self._on_open()
+                try:
+                    item = self._receive()
+                except Exception as error:  # CanError, OSError, reset, EOF, device unplugged …
+                    self.counters[self._error_counter] += 1
+                    self._drop_link()
+                    failures += 1
+                    self._link(False, lost.format(error=error))
+                    # a link that opens but fails at once (bus-off) must not spin: keep doubling
+                    self._stop.wait(backoff)
+                    backoff = min(2.0 * backoff, self.backoff_s[1])
+                    continue
+                backoff = self.backoff_s[0]  # the link works
+                t_s = self.clock()
+                if item is None:
+                    if self.decoder.assembler.pending:
+                        self._deliver(self.decoder.expire(t_s), t_s)
+                    continue
+                self._handle(item, t_s)
+        finally:
+            self._drop_link()
+            self._connected.clear()
+
+
+class N2kCanReader(N2kReaderThread):
     """Background reader: CAN bus → decoded NMEA 2000 events for a sink.
 
     Parameters
@@ -184,136 +347,38 @@ class N2kCanReader:
         The only frame the reader ever sends; off by default (a listen-only reader).
     """
 
+    _words = ("bus open", "bus reopened after {failures} failure(s)", "cannot open bus: {error!r}",
+              "bus error: {error!r}")
+    _error_counter = "bus_errors"
+
     def __init__(self, bus: CanBusConfig, sink: Callable[[N2kEvent], Any], *, clock: Clock = time.monotonic,
                  source_names: Mapping[int, str] | None = None, decoder: N2kDecoder | None = None,
                  deliver_raw: bool = False, poll_s: float = 0.1,
                  backoff_s: tuple[float, float] = (0.05, 2.0), request_address_claims: bool = False) -> None:
-        if not poll_s > 0.0 or not 0.0 < backoff_s[0] <= backoff_s[1]:
-            raise ValueError("poll_s must be > 0 and 0 < backoff_s[0] <= backoff_s[1]")
+        super().__init__(bus.name, sink, clock=clock, source_names=source_names, decoder=decoder,
+                         deliver_raw=deliver_raw, poll_s=poll_s, backoff_s=backoff_s)
         self.bus_config = bus
-        self.sink = sink
-        self.clock = clock
-        self.decoder = decoder or N2kDecoder()
-        self.deliver_raw = deliver_raw
-        self.poll_s = poll_s
-        self.backoff_s = backoff_s
         self.request_address_claims = request_address_claims
-        self.counters: Counter[str] = Counter()
-        self._names = dict(source_names or {})
-        self._stop = threading.Event()
-        self._connected = threading.Event()
-        self._thread: threading.Thread | None = None
         self._bus: can.BusABC | None = None
 
-    # ---- life cycle ----------------------------------------------------------------------
+    def _open_link(self) -> None:
+        self._bus = self.bus_config.open()
 
-    def start(self) -> N2kCanReader:
-        """Start the reader thread (opening the bus happens in it). Returns ``self``."""
-        if self._thread is not None:
-            raise RuntimeError("reader already started")
-        self._thread = threading.Thread(target=self._run, name=f"n2k-reader {self.bus_config.name}", daemon=True)
-        self._thread.start()
-        return self
+    def _on_open(self) -> None:
+        if self.request_address_claims:
+            self._request_address_claims()
 
-    def wait_connected(self, timeout_s: float) -> bool:
-        """Block until the bus is open (or ``timeout_s`` passes); returns whether it is."""
-        return self._connected.wait(timeout_s)
+    def _receive(self) -> can.Message | None:
+        assert self._bus is not None
+        return self._bus.recv(self.poll_s)
 
-    @property
-    def connected(self) -> bool:
-        """Whether the bus is currently open."""
-        return self._connected.is_set()
+    def _handle(self, item: can.Message, t_s: float) -> None:
+        self._on_message(item, t_s)
 
-    def close(self, timeout_s: float = 3.0) -> None:
-        """Stop the thread and close the bus; returns within about ``timeout_s + poll_s``."""
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout_s + self.poll_s)
-            if self._thread.is_alive():
-                logger.warning("n2k reader thread did not stop within %.1f s", timeout_s)
-
-    def __enter__(self) -> N2kCanReader:
-        return self.start()
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-    # ---- thread ---------------------------------------------------------------------------
-
-    def _emit(self, event: N2kEvent) -> None:
-        try:
-            self.sink(event)
-        except Exception:  # a broken consumer must not stop the bus reader
-            self.counters["sink_errors"] += 1
-            logger.exception("n2k reader sink raised")
-
-    def _link(self, connected: bool, detail: str) -> None:
-        if connected:
-            self._connected.set()
-        else:
-            self._connected.clear()
-        self._emit(LinkStatus(self.clock(), self.bus_config.name, connected, detail))
-
-    def _name(self, address: int) -> str:
-        name = self._names.get(address)
-        return name if name is not None else n2k_source_name(address)
-
-    def _deliver(self, results: Iterable[Any], t_s: float) -> None:
-        for result in results:
-            name = self._name(result.source_address)
-            if isinstance(result.item, Rejected):
-                self._emit(RejectedInput(t_s, name, result.item))
-            else:
-                self._emit(Measurement(t_s, name, result.item))
-
-    def _drop_bus(self) -> None:
+    def _drop_link(self) -> None:
         bus, self._bus = self._bus, None
         if bus is not None:
             shutdown_bus(bus)
-
-    def _run(self) -> None:
-        backoff = self.backoff_s[0]
-        failures = 0
-        try:
-            while not self._stop.is_set():
-                if self._bus is None:
-                    try:
-                        self._bus = self.bus_config.open()
-                    except Exception as error:  # any driver error: report, back off, retry
-                        self.counters["open_errors"] += 1
-                        if failures == 0:
-                            self._link(False, f"cannot open bus: {error!r}")
-                        failures += 1
-                        self._stop.wait(backoff)
-                        backoff = min(2.0 * backoff, self.backoff_s[1])
-                        continue
-                    if failures:
-                        self.counters["reconnects"] += 1
-                    self._link(True, "bus open" if not failures else f"bus reopened after {failures} failure(s)")
-                    failures = 0
-                    if self.request_address_claims:
-                        self._request_address_claims()
-                try:
-                    message = self._bus.recv(self.poll_s)
-                except Exception as error:  # CanError, OSError, websocket closed …
-                    self.counters["bus_errors"] += 1
-                    self._drop_bus()
-                    failures += 1
-                    self._link(False, f"bus error: {error!r}")
-                    # a bus that opens but fails at once (bus-off) must not spin: keep doubling
-                    self._stop.wait(backoff)
-                    backoff = min(2.0 * backoff, self.backoff_s[1])
-                    continue
-                backoff = self.backoff_s[0]  # the bus works
-                t_s = self.clock()
-                if message is None:
-                    if self.decoder.assembler.pending:
-                        self._deliver(self.decoder.expire(t_s), t_s)
-                    continue
-                self._on_message(message, t_s)
-        finally:
-            self._drop_bus()
-            self._connected.clear()
 
     def _request_address_claims(self) -> None:
         """ISO request (59904) for the address claim (60928), to all, from the null address 254."""
