@@ -32,6 +32,7 @@ import collections
 import contextlib
 import functools
 import ipaddress
+import json
 import logging
 import math
 import signal
@@ -41,6 +42,7 @@ import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
 from importlib import resources
+from pathlib import Path
 from typing import Any
 
 import orjson
@@ -247,8 +249,49 @@ class ConsoleFeed:
                 "peers": len(self.node.peers()), "acknowledged": acknowledged, "trail_tip": tip}
 
 
+def load_capability(path: str | Path) -> dict[str, Any]:
+    """The DP capability polar of ``sim-plant capability`` (its ``capability.json``) for the console's page.
+
+    Returns
+    -------
+    dict
+        ``{"level", "vessel", "current_mps", "directions_deg", "cases": [{"case", "max_wind_mps"}]}``:
+        directions relative to the bow [deg], clockwise; the largest mean wind held from each [m/s], one list
+        per case (intact, and each failure case the file holds).
+
+    Raises
+    ------
+    ValueError
+        The file cannot be read, is not JSON, or is not a capability file (the message says what is wrong).
+    """
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise ValueError(f"--capability {path}: {error}") from None
+
+    def numbers(value: Any, what: str, length: int | None = None) -> list[float]:
+        if not isinstance(value, list) or not value or (length is not None and len(value) != length) or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value):
+            raise ValueError(f"--capability {path}: {what}: expected {length or 'some'} finite numbers")
+        return [float(v) for v in value]
+
+    if not isinstance(data, dict):
+        raise ValueError(f"--capability {path}: expected the capability.json of sim-plant capability")
+    directions = numbers(data.get("directions_deg"), "directions_deg")
+    raw_cases = data.get("cases") or [{"case": "intact", "max_wind_mps": data.get("max_wind_mps")}]
+    if not isinstance(raw_cases, list):
+        raise ValueError(f"--capability {path}: cases: expected a list")
+    cases = [{"case": str(case.get("case", f"case {i}")),
+              "max_wind_mps": numbers(case.get("max_wind_mps"), f"cases[{i}].max_wind_mps", len(directions))}
+             for i, case in enumerate(raw_cases) if isinstance(case, dict)]
+    if not cases:
+        raise ValueError(f"--capability {path}: no case to draw")
+    return {"level": data.get("level"), "vessel": str(data.get("vessel", "")), "current_mps": data.get("current_mps"),
+            "directions_deg": directions, "cases": cases}
+
+
 def build_app(feed: ConsoleFeed, *, session_config: ZenohConfig, allow_actions: bool,
-              timeout_s: float = DEFAULT_TIMEOUT_S) -> Any:
+              timeout_s: float = DEFAULT_TIMEOUT_S, capability: Mapping[str, Any] | None = None) -> Any:
     """The Starlette application: ``/`` (the page), ``/api/info``, ``/api/trail``, ``/ws`` (snapshots),
     ``/api/ack`` and, with ``allow_actions``, ``/api/request``."""
     from starlette.applications import Starlette  # noqa: PLC0415 - web stack only for the console
@@ -271,7 +314,7 @@ def build_app(feed: ConsoleFeed, *, session_config: ZenohConfig, allow_actions: 
     async def info(_request: Request) -> Response:
         geometry = await run_in_threadpool(feed.geometry)
         return json_response({"vessel": vessel, "allow_actions": allow_actions, "modes": list(MODES),
-                              "geometry": geometry, "fields": dict(REQUEST_FIELDS)})
+                              "geometry": geometry, "fields": dict(REQUEST_FIELDS), "capability": capability})
 
     async def trail(_request: Request) -> Response:
         return json_response(feed.trail())
@@ -334,7 +377,7 @@ def _send(session_config: ZenohConfig, vessel: str, fields: Mapping[str, Any], t
 
 def run_console(vessel: str, session_config: ZenohConfig, *, http: str = DEFAULT_HTTP,
                 allow_actions: bool = False, timeout_s: float = DEFAULT_TIMEOUT_S,
-                started: Callable[[str], None] | None = None) -> int:
+                started: Callable[[str], None] | None = None, capability: Mapping[str, Any] | None = None) -> int:
     """Serve the console for ``vessel`` until interrupted.
 
     Parameters
@@ -352,6 +395,8 @@ def run_console(vessel: str, session_config: ZenohConfig, *, http: str = DEFAULT
         Longest wait for the controller's answer to a request [s].
     started : callable, optional
         Called with the page's URL once the server listens.
+    capability : mapping, optional
+        The vessel's DP capability polar (:func:`load_capability`), drawn with the live mean load.
 
     Returns
     -------
@@ -391,7 +436,8 @@ def run_console(vessel: str, session_config: ZenohConfig, *, http: str = DEFAULT
         return 1
     try:
         feed = ConsoleFeed(node, vessel)
-        app = build_app(feed, session_config=session_config, allow_actions=allow_actions, timeout_s=timeout_s)
+        app = build_app(feed, session_config=session_config, allow_actions=allow_actions, timeout_s=timeout_s,
+                        capability=capability)
         server = uvicorn.Server(uvicorn.Config(app, host=host, port=port, log_level="warning", lifespan="off",
                                                ws="auto"))
 
@@ -436,6 +482,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "read-only without it")
     parser.add_argument("--timeout", type=positive_number, default=DEFAULT_TIMEOUT_S, metavar="SECONDS",
                         help=f"longest wait for the controller's answer to an action (default {DEFAULT_TIMEOUT_S:g})")
+    parser.add_argument("--capability", metavar="FILE",
+                        help="the vessel's capability.json (sim-plant capability): its polar is drawn, with the "
+                             "direction of the mean load the thrusters are holding now")
 
 
 def session_config_from_args(args: argparse.Namespace) -> ZenohConfig:
@@ -449,10 +498,12 @@ def run_from_args(args: argparse.Namespace) -> int:
     """Run :func:`run_console` from parsed :func:`add_arguments` options."""
     try:
         config = session_config_from_args(args)
+        capability = None if args.capability is None else load_capability(args.capability)
     except ValueError as error:
         print(f"dpcontrol console: {error}", file=sys.stderr)
         return 2
-    return run_console(args.vessel, config, http=args.http, allow_actions=args.allow_actions, timeout_s=args.timeout)
+    return run_console(args.vessel, config, http=args.http, allow_actions=args.allow_actions, timeout_s=args.timeout,
+                       capability=capability)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

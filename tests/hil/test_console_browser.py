@@ -32,6 +32,7 @@ from hil_pair import ROOT, running_pair
 from interfaces.zenoh.config import ZenohConfig
 from interfaces.zenoh.loopback import free_tcp_port
 from interfaces.zenoh.node import LatestSlot, ZenohNode
+from sim_plant.cli import main as sim_plant_main
 
 pytestmark = [pytest.mark.hil, pytest.mark.slow]
 
@@ -123,11 +124,15 @@ def test_console_shows_the_live_vessel_and_applies_a_setpoint(tmp_path_factory: 
     shots = Path(os.environ.get("DPCONTROL_SCREENSHOTS") or run_dir)
     if not shots.is_absolute():
         shots = ROOT / shots
+    # the vessel's capability polar, as sim-plant capability writes it (intact and worst single failure)
+    capability = run_dir / "capability"
+    assert sim_plant_main(["capability", str(ROOT / "deploy" / "config" / "cybership2.yaml"), "--out", str(capability),
+                           "--directions", "12", "--failed", "worst"]) == 0
     with running_pair("cybership2", run_dir, short, 300.0, _only_first_setpoint) as pair:
         control: LatestSlot[Any] = LatestSlot()
         node = ZenohNode(ZenohConfig(mode="peer", connect=(pair.endpoint,)), pair.vessel)
         console = Console(pair.vessel, pair.endpoint, "--allow-actions")
-        readonly = Console(pair.vessel, pair.endpoint)
+        readonly = Console(pair.vessel, pair.endpoint, "--capability", str(capability / "capability.json"))
         driver = _browser()
         try:
             node.subscribe("control", control)
@@ -192,6 +197,17 @@ def test_console_shows_the_live_vessel_and_applies_a_setpoint(tmp_path_factory: 
             assert status == 403 and reply["outcome"] == "not_sent", reply
             time.sleep(1.0)
             assert driver.find_element(By.ID, "mode").text == "AUTO POSITION"  # nothing reached the daemon
+            # 5. given the capability file, the polar is drawn with its cases (absent from the other console)
+            assert driver.find_element(By.ID, "capability-panel").is_displayed()
+            legend = _text(driver, "capability-legend")
+            assert "intact" in legend and "worst" in legend.lower(), legend
+            assert driver.execute_script(  # something drawn: pixels of the canvas that are not transparent
+                "const c = document.getElementById('capability');"
+                "return c.getContext('2d').getImageData(0, 0, c.width, c.height).data.some((v, i) => i % 4 == 3 && v);")
+            assert driver.save_screenshot(str(shots / "console-capability.png"))
+            driver.get(console.url)
+            WebDriverWait(driver, 5.0, 0.05).until(lambda d: _text(d, "pose-north") not in ("—", ""))
+            assert not driver.find_element(By.ID, "capability-panel").is_displayed()
         finally:
             driver.quit()
             node.close()

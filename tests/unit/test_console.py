@@ -120,3 +120,24 @@ def test_a_port_in_use_is_one_line_and_exit_1(capsys: pytest.CaptureFixture[str]
     err = capsys.readouterr().err
     assert err.startswith(f"dpcontrol console: cannot serve on 127.0.0.1:{port}: ") and len(err.splitlines()) == 1
     assert run_console("v1", ZenohConfig(), http="127.0.0.1:http") == 2
+
+
+def test_a_capability_file_is_read_as_sim_plant_capability_writes_it(tmp_path) -> None:
+    import json  # noqa: PLC0415
+
+    from dpcontrol.console import load_capability  # noqa: PLC0415
+    from sim_plant.cli import main as sim_plant_main  # noqa: PLC0415
+
+    assert sim_plant_main(["capability", "supply", "--out", str(tmp_path), "--directions", "8",
+                           "--failed", "worst"]) == 0
+    cap = load_capability(tmp_path / "capability.json")
+    assert len(cap["directions_deg"]) == 8 and cap["cases"][0]["case"] == "intact"
+    assert len(cap["cases"]) == 2 and all(len(c["max_wind_mps"]) == 8 for c in cap["cases"])
+    bad = tmp_path / "bad.json"
+    for text, words in (("not json", "Expecting value"), ("[1, 2]", "capability.json"),
+                        (json.dumps({"directions_deg": [0, 90], "max_wind_mps": [1.0]}), "max_wind_mps")):
+        bad.write_text(text, encoding="utf-8")
+        with pytest.raises(ValueError, match=words):
+            load_capability(bad)
+    with pytest.raises(ValueError, match="No such file"):
+        load_capability(tmp_path / "missing.json")
