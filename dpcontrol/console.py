@@ -71,7 +71,7 @@ TRAIL_POINTS = 3600
 REQUEST_FIELDS: Mapping[str, str] = {
     "mode": "text", "north_m": "number", "east_m": "number", "heading_deg": "number", "move_north_m": "number",
     "move_east_m": "number", "move_surge_m": "number", "move_sway_m": "number", "turn_deg": "number",
-    "reset_thruster": "text"}
+    "reset_thruster": "text", "accept_reference": "text"}
 
 
 def parse_http_address(text: str) -> tuple[str, int]:

@@ -48,7 +48,8 @@ EXIT_USAGE = 2
 _FIELDS: tuple[tuple[str, str], ...] = (
     ("mode", "mode"), ("north", "north_m"), ("east", "east_m"), ("heading", "heading_deg"),
     ("move_north", "move_north_m"), ("move_east", "move_east_m"), ("move_surge", "move_surge_m"),
-    ("move_sway", "move_sway_m"), ("turn", "turn_deg"), ("reset_thruster", "reset_thruster"))
+    ("move_sway", "move_sway_m"), ("turn", "turn_deg"), ("reset_thruster", "reset_thruster"),
+    ("accept_reference", "accept_reference"))
 
 
 @dataclass(frozen=True, slots=True)
@@ -250,6 +251,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--reset-thruster", metavar="NAME",
                         help="clear a thruster's latched failure (the drive is repaired): it rejoins the allocation "
                              "unless its drive reports not ready")
+    parser.add_argument("--accept-reference", metavar="NAME",
+                        help="take a lone position or heading reference that the prediction test rejects (it "
+                             "jumped) as the truth now: the estimator is re-initialised on it")
     parser.add_argument("--timeout", type=positive_number, default=DEFAULT_TIMEOUT_S, metavar="SECONDS",
                         help=f"longest wait for the controller's answer (default {DEFAULT_TIMEOUT_S:g})")
     parser.add_argument("--json", action="store_true", help="print the answer as one JSON object")

@@ -613,6 +613,11 @@ class SensorHub:
                                "operator accepts it")
         return False
 
+    @property
+    def reference_names(self) -> list[str]:
+        """The configured references (sensors), in configuration order."""
+        return list(self._tracks)
+
     def accept_reference(self, name: str) -> bool:
         """The operator accepts reference ``name`` as the truth: when it is failing the prediction test, the
         estimator is re-initialised on it at the next update (:attr:`HubOutput.position_reset` /

@@ -281,6 +281,12 @@ class DpController:
                     self._fell_back = None  # the operator decides: no automatic return
             if request.reset_thruster is not None:
                 self._reset_thruster(request.reset_thruster, refusals, notes)
+            if request.accept_reference is not None:
+                if self.accept_reference(request.accept_reference):
+                    notes.append(f"reference {request.accept_reference} accepted as the truth")
+                else:
+                    refusals.append(f"accept_reference {request.accept_reference!r}: no such reference "
+                                    f"({', '.join(self.hub.reference_names)})")
             out.rejected_requests.extend(refusals)
             taken.append((request.seq, refusals, notes))
 

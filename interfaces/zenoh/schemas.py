@@ -87,6 +87,7 @@ here ``?`` means the field may be left out (or be ``null``: not given)::
     move_surge_m?, move_sway_m?  relative move along the current setpoint's heading (body axes)
     turn_deg? | turn_rad?        relative heading change (clockwise positive)
     reset_thruster?              a thruster whose latched failure the operator clears (repaired: readmitted)
+    accept_reference?            a lone reference the prediction test rejects, taken as the truth now
 
 ``dpcontrol.config/1`` (reply of the ``dp/<vessel>/config`` queryable)::
 
@@ -525,8 +526,10 @@ SETPOINT = Schema("dpcontrol.setpoint", 1, Record({
     "turn_deg": Number(-360.0, 360.0, nullable=True),
     "turn_rad": Number(-_ANGLE_LIMIT_RAD, _ANGLE_LIMIT_RAD, nullable=True),
     "reset_thruster": Text(pattern=_IDENT, max_len=64, nullable=True),
+    "accept_reference": Text(pattern=_IDENT, max_len=64, nullable=True),
 }, optional=("mode", "north_m", "east_m", "heading_deg", "heading_rad", "move_north_m", "move_east_m",
-             "move_surge_m", "move_sway_m", "turn_deg", "turn_rad", "reset_thruster")), max_bytes=4_096)
+             "move_surge_m", "move_sway_m", "turn_deg", "turn_rad", "reset_thruster", "accept_reference")),
+                  max_bytes=4_096)
 
 CONFIG = Schema("dpcontrol.config", 1, Record({"config": AnyObject()}), max_bytes=1_048_576)
 
@@ -725,6 +728,7 @@ class SetpointRequest:
     move_sway_m: float | None = None
     turn_rad: float | None = None
     reset_thruster: str | None = None
+    accept_reference: str | None = None
     role: str | None = None
     identity: str | None = None
 
@@ -816,7 +820,8 @@ def parse_setpoint(payload: object, *, limits: SetpointLimits = SetpointLimits()
     * absolute: ``{"north_m": 10, "east_m": -5, "heading_deg": 90}`` (position and/or heading);
     * relative: ``{"move_surge_m": 5}``, ``{"move_north_m": 2, "move_east_m": 1}``, ``{"turn_deg": -10}``;
     * mode only: ``{"mode": "auto_position"}``; ``mode`` may accompany any of the above;
-    * a thruster's latched failure cleared: ``{"reset_thruster": "bow_tunnel_1"}`` (alone or with the above).
+    * a thruster's latched failure cleared: ``{"reset_thruster": "bow_tunnel_1"}`` (alone or with the above);
+    * a lone reference accepted as the truth: ``{"accept_reference": "gnss1"}`` (alone or with the above).
 
     Rules: ``north_m`` and ``east_m`` together (``incomplete`` otherwise); at most one of
     ``heading_deg``/``heading_rad`` and of ``turn_deg``/``turn_rad``; no absolute position with a
@@ -858,10 +863,12 @@ def parse_setpoint(payload: object, *, limits: SetpointLimits = SetpointLimits()
         t_s=r["t_s"], seq=r["seq"], mode=r["mode"], north_m=r["north_m"], east_m=r["east_m"],
         heading_rad=None if heading is None else ssa(heading),
         move_north_m=r["move_north_m"], move_east_m=r["move_east_m"], move_surge_m=r["move_surge_m"],
-        move_sway_m=r["move_sway_m"], turn_rad=turn, reset_thruster=r["reset_thruster"])
-    if request.mode is None and not request.changes_pose and request.reset_thruster is None:
-        return reject("empty", "request asks for nothing: give a mode, a position, a heading, a move or a thruster "
-                               "to reset")
+        move_sway_m=r["move_sway_m"], turn_rad=turn, reset_thruster=r["reset_thruster"],
+        accept_reference=r["accept_reference"])
+    if request.mode is None and not request.changes_pose and request.reset_thruster is None \
+            and request.accept_reference is None:
+        return reject("empty", "request asks for nothing: give a mode, a position, a heading, a move, a thruster "
+                               "to reset or a reference to accept")
     return request
 
 
@@ -1278,12 +1285,12 @@ def setpoint_payload(*, t_s: float, seq: int, mode: str | None = None, north_m: 
                      move_north_m: float | None = None, move_east_m: float | None = None,
                      move_surge_m: float | None = None, move_sway_m: float | None = None,
                      turn_deg: float | None = None, turn_rad: float | None = None,
-                     reset_thruster: str | None = None) -> bytes:
+                     reset_thruster: str | None = None, accept_reference: str | None = None) -> bytes:
     """Encode an operator setpoint request (fields left ``None`` are omitted); see :func:`parse_setpoint`."""
     fields = {"mode": mode, "north_m": north_m, "east_m": east_m, "heading_deg": heading_deg,
               "heading_rad": heading_rad, "move_north_m": move_north_m, "move_east_m": move_east_m,
               "move_surge_m": move_surge_m, "move_sway_m": move_sway_m, "turn_deg": turn_deg, "turn_rad": turn_rad,
-              "reset_thruster": reset_thruster}
+              "reset_thruster": reset_thruster, "accept_reference": accept_reference}
     body = {key: value for key, value in fields.items() if value is not None}
     return _encode({"schema": SETPOINT.id, "t_s": float(t_s), "seq": int(seq), **body})
 

@@ -137,3 +137,21 @@ def test_an_auto_engage_refusal_is_no_requests_refusal() -> None:
     assert controller.last_request is not None and controller.last_request.seq == 5
     assert controller.last_request.outcome == "applied"
     assert controller.out.rejected_requests and controller.out.rejected_requests[0].startswith("auto_position refused")
+
+
+def test_the_operator_accepts_a_reference_through_the_request_path() -> None:
+    """``accept_reference`` travels the same way as every operator request: the payload of ``dpcontrol setpoint
+    --accept-reference NAME`` parsed by the daemon's parser, the hub told (its own test: tests/unit/test_hub.py),
+    the answer naming what was done — or refused for a name that is no reference."""
+    payload = schemas.setpoint_payload(t_s=1.0, seq=8, accept_reference="gnss1")
+    request = schemas.parse_setpoint(payload)
+    assert isinstance(request, SetpointRequest) and request.accept_reference == "gnss1"
+    controller = DpController(bench_config())
+    controller.step(1.0, requests=[request])
+    outcome = controller.last_request
+    assert (outcome.seq, outcome.outcome) == (8, "applied")
+    assert "reference gnss1 accepted as the truth" in outcome.detail
+    controller.step(1.1, requests=[SetpointRequest(t_s=1.1, seq=9, accept_reference="gnss9")])
+    outcome = controller.last_request
+    assert (outcome.seq, outcome.outcome) == (9, "refused")
+    assert "accept_reference 'gnss9': no such reference (gnss1, gyro1)" in outcome.detail
