@@ -594,22 +594,10 @@ class DpController:
             self._heading_lost_alarm = False
         if self.mode is not Mode.STANDBY:
             if heading_lost and hub.heading_lost_s >= fb.heading_loss_limit_s:
-                if fb.heading_loss == "dead_reckoning":
-                    self.alarms.raise_(t_s, "heading.dead_reckoning_limit", Severity.CRITICAL,
-                                       f"heading dead-reckoned beyond {fb.heading_loss_limit_s:g} s: still holding "
-                                       "on the model; the operator decides")
-                else:
-                    wanted = Mode.STANDBY if fb.heading_loss == "standby" else Mode.AUTO_HEADING
-                    self._fallback(t_s, wanted, "heading references lost")
+                wanted = self._loss_limit(t_s, "heading", fb.heading_loss, fb.heading_loss_limit_s, wanted)
             elif self.mode is Mode.AUTO_POSITION and dead_reckoning and \
                     hub.position_lost_s >= fb.dead_reckoning_limit_s:
-                if fb.position_loss == "dead_reckoning":
-                    self.alarms.raise_(t_s, "position.dead_reckoning_limit", Severity.CRITICAL,
-                                       f"position dead-reckoned beyond {fb.dead_reckoning_limit_s:g} s: still "
-                                       "holding on the model; the operator decides")
-                else:
-                    wanted = Mode.STANDBY if fb.position_loss == "standby" else Mode.AUTO_HEADING
-                    self._fallback(t_s, wanted, "position references lost")
+                wanted = self._loss_limit(t_s, "position", fb.position_loss, fb.dead_reckoning_limit_s, wanted)
         fell_back = self._fell_back
         if fell_back is not None and wanted is self.mode and self._requested_mode is self.mode:
             wanted = self._restore(t_s, hub, fell_back)
@@ -730,6 +718,19 @@ class DpController:
         self.alarms.raise_(t_s, "control.adaptation", Severity.ALARM,
                            f"MRAC {_MASS_NAMES[dof]} estimate reached its bound ({ratio:.2g}x nominal): adaptation "
                            "suspended, nominal parameters (fixed PD) until a restart")
+
+    def _loss_limit(self, t_s: float, kind: str, action: str, limit_s: float, wanted: Mode) -> Mode:
+        """Every ``kind`` (``position``/``heading``) reference lost for ``limit_s``: keep holding on the model with a
+        critical alarm (``action`` ``dead_reckoning``), or fall back to standby / auto_heading. Returns the mode
+        wanted after it."""
+        if action == "dead_reckoning":
+            self.alarms.raise_(t_s, f"{kind}.dead_reckoning_limit", Severity.CRITICAL,
+                               f"{kind} dead-reckoned beyond {limit_s:g} s: still holding on the model; the "
+                               "operator decides")
+            return wanted
+        fallback = Mode.STANDBY if action == "standby" else Mode.AUTO_HEADING
+        self._fallback(t_s, fallback, f"{kind} references lost")
+        return fallback
 
     def _fallback(self, t_s: float, mode: Mode, reason: str) -> None:
         self._fallback_reason = f"fallback: {reason}"
