@@ -17,9 +17,12 @@ from the controller configuration, multicast scouting off) with
 sends nothing): it publishes the scenario's setpoints at their (plant) times, sends the setpoint in
 force again whenever the controller's liveliness appears (a daemon started late, or restarted, still
 gets its target), and asks for DP (``auto_position``; ``auto_heading`` for a heading-only scenario)
-once the controller is alive and has published a status, repeating the request until the status shows that
-mode or a timeout passes. It runs beside the real-time loop so that a blocking setpoint publisher
-(setpoints are never dropped, see :mod:`interfaces.zenoh.node`) cannot delay a sensor sample.
+as an operator does: once the controller's status shows what the mode needs (the drives heard, a thruster
+available, a heading reference and, for ``auto_position``, a position reference in state ``ok``), or once
+``engage_timeout_s`` has passed without that (the daemon's refusal then says why), repeating the request
+until the status shows that mode or the timeout passes again. It runs beside the real-time loop so that a
+blocking setpoint publisher (setpoints are never dropped, see :mod:`interfaces.zenoh.node`) cannot delay a
+sensor sample.
 """
 
 from __future__ import annotations
@@ -164,6 +167,20 @@ class PlantZenoh:
         self.node.close()
 
 
+def ready_to_engage(status: dict[str, Any], mode: str) -> bool:
+    """Whether a controller status shows what ``mode`` needs, as the operator reads it before asking: the
+    drives heard and a thruster available, a heading reference and (``auto_position``) a position reference
+    in state ``ok``. A request sent before that is refused by the daemon (``operator.request_refused``)."""
+    drives = status.get("drives")
+    if drives is not None and not drives.get("present"):
+        return False
+    if not any(thruster.get("available") for thruster in status.get("thrusters", ())):
+        return False
+    kinds_ok = {sensor.get("kind") for sensor in status.get("sensors", ()) if sensor.get("state") == "ok"}
+    needed = {"heading", "position"} if mode == "auto_position" else {"heading"}
+    return needed <= kinds_ok
+
+
 class Operator:
     """The operator station of a HIL run (see the module docstring).
 
@@ -205,6 +222,7 @@ class Operator:
         self._engage_state: dict[str, Any] = {"requested": engage, "mode": engage_mode if engage else None,
                                               "engaged": False, "attempts": 0, "t_s": None, "gave_up": False}
         self._first_request: float | None = None  # wall time of the first mode request
+        self._first_status: float | None = None  # wall time of the controller's first status
         self._next_request = -math.inf
         zenoh.add_listener(self._wake.set)
 
@@ -289,6 +307,11 @@ class Operator:
                 state.update(engaged=True, t_s=now)
             log.info("controller is in %s", self._mode)
             return math.inf
+        if self._first_status is None:
+            self._first_status = wall
+        if self._first_request is None and not ready_to_engage(status.message, self._mode) \
+                and wall < self._first_status + self._timeout_s:
+            return self._retry_s  # (a status arrival wakes the thread sooner)
         if self._first_request is not None and wall >= self._first_request + self._timeout_s:
             with self._lock:
                 state["gave_up"] = True

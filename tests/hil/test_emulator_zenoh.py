@@ -59,7 +59,12 @@ class FakeController(threading.Thread):
                 self.received_setpoints.append(item.message)
                 if item.message.mode is not None:
                     self.mode = item.message.mode
-            self.status.put(sc.status_payload(t_s=0.0, seq=self.status.next_seq(), mode=self.mode))
+            # (what the operator waits for before asking for DP: references ok, drives heard, thrusters up)
+            self.status.put(sc.status_payload(
+                t_s=0.0, seq=self.status.next_seq(), mode=self.mode,
+                sensors=[sc.SensorHealth("gnss1", "position", "ok"), sc.SensorHealth("gyro1", "heading", "ok")],
+                thrusters=[sc.ThrusterAvailability(name, True) for name in NAMES],
+                drives=sc.DrivesSeen(present=True, seen=True, feedback_age_s=0.1)))
             with self._lock:
                 if self.commanding.is_set():
                     seq = self.command.next_seq()
