@@ -122,11 +122,16 @@ def _bounds(minimum: float | None, maximum: float | None, exclusive_minimum: boo
     return ", ".join(parts)
 
 
-def join(path: str, key: str | int) -> str:
-    """Extend a key path: ``join("sensors", 1) == "sensors[1]"``, ``join("a", "b") == "a.b"``."""
-    if isinstance(key, int):
-        return f"{path}[{key}]"
-    return f"{path}.{key}" if path else key
+def join(path: str, *keys: str | int) -> str:
+    """Extend a key path: ``join("sensors", 1) == "sensors[1]"``, ``join("a", "b", "c") == "a.b.c"``."""
+    for key in keys:
+        if isinstance(key, int):
+            path = f"{path}[{key}]"
+        elif path:
+            path = f"{path}.{key}"
+        else:
+            path = key
+    return path
 
 
 class Section:

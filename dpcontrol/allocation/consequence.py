@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -89,7 +90,7 @@ class WorstCaseFailure:
     """
 
     def __init__(self, thrusters: Sequence[ThrusterSpec], groups: Sequence[FailureGroup], *,
-                 tolerance: float = 0.002, allocation: Mapping[str, object] | None = None) -> None:
+                 tolerance: float = 0.002, allocation: Mapping[str, Any] | None = None) -> None:
         names = [spec.name for spec in thrusters]
         self._names = names
         self.groups = tuple(groups)

@@ -104,7 +104,7 @@ def reference_transition(omega: float, zeta: float, dt: float) -> tuple[float, f
 
 
 @kernel(i8(f8_1d))
-def _valid3(v: np.ndarray) -> i8:
+def _valid3(v: np.ndarray) -> int:
     """1 if ``v`` holds 3 finite numbers, else 0."""
     if v.size != 3:
         return 0
@@ -125,7 +125,7 @@ def _adapted(a: float, nominal: float, rate: float, k: float, dt: float) -> floa
 
 
 @kernel(i8(f8_1d, f8_1d, f8_1d, f8_1d))
-def _state_inputs_error(eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind: np.ndarray) -> i8:
+def _state_inputs_error(eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind: np.ndarray) -> int:
     """0 when the estimate, bias and wind vectors each hold 3 finite numbers, else ``ERROR_INPUT − k`` for
     the first (k-th, from 0) that does not: the check both controller steps start with."""
     if _valid3(eta) == 0:

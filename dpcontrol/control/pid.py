@@ -27,7 +27,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, Literal, cast
 
 import numpy as np
 
@@ -196,8 +196,10 @@ def default_pid_config(vessel: VesselData, integral_action: IntegralAction = "in
     else:
         if natural_period_s is None:
             natural_period_s = default_natural_period_s(vessel)
-        periods = [float(natural_period_s)] * 3 if np.isscalar(natural_period_s) else list(natural_period_s)
-        zetas = [float(relative_damping)] * 3 if np.isscalar(relative_damping) else list(relative_damping)
+        periods = ([float(natural_period_s)] * 3 if isinstance(natural_period_s, int | float | np.integer | np.floating)
+                   else [float(p) for p in natural_period_s])
+        zetas = ([float(relative_damping)] * 3 if isinstance(relative_damping, int | float | np.integer | np.floating)
+                 else [float(z) for z in relative_damping])
         kp, kd, ki = pole_placement_gains(vessel.mass_matrix, vessel.damping_matrix, periods, zetas)
     return PidConfig(
         kp=kp, kd=kd, ki=ki, integral_action=integral_action,
@@ -216,7 +218,7 @@ def pid_config_from_mapping(value: object, vessel: VesselData, path: str = "cont
     """
     section = Section.of(value, path)
     section.string("kind", "pid", choices=("pid",))
-    action = section.string("integral_action", "integrator", choices=INTEGRAL_ACTIONS)
+    action = cast(IntegralAction, section.string("integral_action", "integrator", choices=INTEGRAL_ACTIONS))
     feedforward = section.boolean("reference_feedforward", True)
     explicit = [key for key in ("kp", "kd", "ki") if section.has(key)]
     if explicit and len(explicit) != 3:
@@ -235,7 +237,7 @@ def pid_config_from_mapping(value: object, vessel: VesselData, path: str = "cont
     tracking = section.raw("antiwindup_time_constant_s", None)
     limit = section.raw("integral_limit", None)
     config = PidConfig(
-        kp=kp, kd=kd, ki=ki, integral_action=action,  # type: ignore[arg-type]
+        kp=kp, kd=kd, ki=ki, integral_action=action,
         mass_matrix=vessel.mass_matrix if feedforward else None,
         damping_matrix=vessel.damping_matrix if feedforward else None,
         antiwindup_time_constant_s=None if tracking is None else _positive_triple(
@@ -350,7 +352,9 @@ class PidController:
                        (reference.eta_d_n, reference.eta_dot_d_n, reference.eta_ddot_d_n)]
             if any(v.size < 3 for v in vectors):
                 raise IndexError("reference vectors must have 3 entries (north, east, heading)")
-            pid_step(dt, eta, nu, bias, wind, *vectors, mask, self._structure, self._gains, self._state, out)
+            eta_d, eta_dot_d, eta_ddot_d = vectors
+            pid_step(dt, eta, nu, bias, wind, eta_d, eta_dot_d, eta_ddot_d, mask, self._structure, self._gains,
+                     self._state, out)
         return ControlOutput(out[0:3], out[3:6], out[6:9], None)
 
     def notify_achieved(self, tau_achieved_b: np.ndarray) -> None:

@@ -187,9 +187,9 @@ def dp_design_model(
     omega_rad_s: float | None,
     *,
     zeta: float,
-    wf_intensity: Sequence[float] | None,
-    force_intensity: Sequence[float],
-    bias_intensity: Sequence[float],
+    wf_intensity: Sequence[float] | np.ndarray | None,
+    force_intensity: Sequence[float] | np.ndarray,
+    bias_intensity: Sequence[float] | np.ndarray,
     bias_time_constants_s: Sequence[float] | None = None,
 ) -> DesignModel:
     """Build the DP design model of seed 002 eqs. (36)–(39) / seed 001 eqs. (33)–(38).
@@ -220,7 +220,7 @@ def dp_design_model(
     if M.shape != (3, 3) or D.shape != (3, 3):
         raise ValueError("mass and damping matrices must be 3x3")
     with_waves = omega_rad_s is not None
-    if with_waves and not (omega_rad_s > 0.0 and zeta > 0.0):
+    if omega_rad_s is not None and not (omega_rad_s > 0.0 and zeta > 0.0):
         raise ValueError(f"wave model needs omega_rad_s > 0 and zeta > 0, got {omega_rad_s}, {zeta}")
     index = StateIndex.for_model(with_waves)
     n = index.n
@@ -245,7 +245,7 @@ def dp_design_model(
 
     blocks_q = [np.asarray(force_intensity, dtype=float), np.asarray(bias_intensity, dtype=float)]
     r = 6
-    if with_waves:
+    if omega_rad_s is not None:  # with_waves
         A_w, E_w, C_w = wave_matrices(float(omega_rad_s), zeta)
         A[0:6, 0:6] = A_w
         H[:, 0:6] = C_w
@@ -265,5 +265,5 @@ def dp_design_model(
     E[index.nu, col:col + 3] = M_inv                    # w2 → ν̇ through M⁻¹
     E[index.bias, col + 3:col + 6] = eye                # w3 → ḃp
     Qc = np.diag(np.concatenate(blocks_q))
-    return DesignModel(A=A, B=B, E=E, H=H, Qc=Qc, omega_rad_s=None if not with_waves else float(omega_rad_s),
+    return DesignModel(A=A, B=B, E=E, H=H, Qc=Qc, omega_rad_s=None if omega_rad_s is None else float(omega_rad_s),
                        zeta=float(zeta), index=index)

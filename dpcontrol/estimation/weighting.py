@@ -290,7 +290,7 @@ class BandLikelihood:
     """
 
     def __init__(self, n_models: int, *, sample_time_s: float, band_rad_s: Sequence[float], scale_time_s: float,
-                 lf_excess_limit: float, length_m: float, noise_var: Sequence[float],
+                 lf_excess_limit: float, length_m: float, noise_var: Sequence[float] | np.ndarray,
                  prior_wf_energy: Sequence[float], share_time_s: float, order: int = 2) -> None:
         lo, hi = float(band_rad_s[0]), float(band_rad_s[1])
         if not 0.0 < lo < hi:
@@ -308,7 +308,7 @@ class BandLikelihood:
         self._noise = (noise[0] + noise[1], noise[2] * self.heading_scale_m**2)
         self._prior = (float(prior_wf_energy[0]), float(prior_wf_energy[1]))
         self._filters: dict[int, _Prefilter] = {}
-        self._stacks: dict[tuple[int, int], tuple[np.ndarray, ...]] = {}
+        self._stacks: dict[tuple[int, int], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         n_state = self._prefilter(1).A.shape[0]           # also checks the band at the control period
         rows = self.n_models + 1                           # the bank's innovations + the residual row
         self.state = np.zeros((rows, 3, n_state))           # prefilter states per row and channel
@@ -427,7 +427,7 @@ class BandLikelihood:
         """Restore :meth:`state_dict`; ValueError (nothing changed) if it does not fit this bank."""
         if not isinstance(state, dict):
             raise ValueError("likelihood state: expected a mapping")
-        band = state.get("band_rad_s")
+        band: Any = state.get("band_rad_s")  # (None or any JSON value: judged below)
         try:
             band_ok = len(band) == 2 and np.allclose(np.asarray(band, dtype=float), self.band_rad_s,
                                                      rtol=1e-12, atol=0.0)

@@ -20,7 +20,7 @@ import time
 from collections import Counter
 from collections.abc import Callable, Hashable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 from dpbase.schema import ConfigError, Section, join
 from interfaces.mavlink.codec import (
@@ -223,7 +223,11 @@ class MavlinkUdpReader:
     def _link(self, change: LinkChange) -> LinkStatus:
         """Count and emit a link change (called with the monitor lock held, so changes keep their order)."""
         key = change.key
-        name = "mavlink" if key is None else self._name(*key, "HEARTBEAT")  # type: ignore[misc]
+        if key is None:
+            name = "mavlink"
+        else:
+            system_id, component_id = cast(tuple[int, int], key)  # the monitor's keys are (system, component)
+            name = self._name(system_id, component_id, "HEARTBEAT")
         status = LinkStatus(change.t_s, name, change.connected, change.detail)
         self.counters["link_up" if change.connected else "link_lost"] += 1
         self._emit(status)

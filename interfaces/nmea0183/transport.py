@@ -31,11 +31,14 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
+from typing import TypeVar
 
 import serial
 
 from interfaces.messages import LinkStatus, Measurement, RejectedInput
 from interfaces.nmea0183.codec import DEFAULT_MAX_SENTENCE_CHARS, Frame, Nmea0183Decoder
+
+_Item = TypeVar("_Item")
 
 _log = logging.getLogger(__name__)
 
@@ -349,7 +352,7 @@ class SerialReader:
             _log.exception("nmea0183 reader %s: clock failed", self.source)
         return self._last_t_s
 
-    def _call(self, callback: Callable[[object], None], item: object) -> None:
+    def _call(self, callback: Callable[[_Item], None], item: _Item) -> None:
         try:
             callback(item)
         except Exception:

@@ -31,9 +31,9 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Final, NamedTuple
+from typing import Any, Final, NamedTuple
 
 from nmea2000 import _canboat as canboat
 from nmea2000 import backend
@@ -178,6 +178,14 @@ class N2kDecoded(NamedTuple):
     source_address: int  # -1 when the frame was too broken to say
     pgn: int  # -1 likewise
     item: SensorMessage | Rejected
+
+
+def _dropped(decoded: N2kDecoded) -> Rejected:
+    """The reject of a message the fast-packet assembler dropped (its items are always rejects)."""
+    item = decoded.item
+    if not isinstance(item, Rejected):  # pragma: no cover - the assembler makes only rejects
+        raise TypeError(f"fast-packet drop carries {type(item).__name__}, not Rejected")
+    return item
 
 
 # --------------------------------------------------------------------------------------------
@@ -504,7 +512,7 @@ class N2kDecoder:
         if pgn in FAST_PACKET_PGNS:
             counters["fast_packet_frames"] += 1
             payload, dropped = self.assembler.push(source, pgn, data, t_s)
-            out = [self._reject(d.source_address, d.pgn, d.item) for d in dropped]
+            out = [self._reject(d.source_address, d.pgn, _dropped(d)) for d in dropped]
             if payload is not None:
                 counters["fast_packet_messages"] += 1
                 out.append(self._finish(source, pgn, self.decode_payload(pgn, payload, source, t_s)))
@@ -535,7 +543,7 @@ class N2kDecoder:
 
     def expire(self, t_s: float) -> list[N2kDecoded]:
         """Drop fast-packet messages that went stale by ``t_s``; call it when the bus is idle too."""
-        return [self._reject(d.source_address, d.pgn, d.item) for d in self.assembler.expire(t_s)]
+        return [self._reject(d.source_address, d.pgn, _dropped(d)) for d in self.assembler.expire(t_s)]
 
     def _reject(self, source: int, pgn: int, rejected: Rejected) -> N2kDecoded:
         self.counters["rejected"] += 1
@@ -596,7 +604,10 @@ class N2kDecoder:
         method, integrity = _code(f, "method"), _code(f, "integrity")
         if method not in _VALID_METHODS or integrity in _BAD_INTEGRITY:
             self._fix_state[source] = (t_s, None)
-            why = f"method {method}" if method not in _VALID_METHODS else f"integrity {_BAD_INTEGRITY[integrity]}"
+            if method not in _VALID_METHODS or integrity is None:
+                why = f"method {method}"
+            else:
+                why = f"integrity {_BAD_INTEGRITY[integrity]}"
             return Rejected("invalid_fix", f"129029 {why}", raw)
         lat, lon = _number(f, "latitude"), _number(f, "longitude")
         if lat is None or lon is None:
@@ -821,7 +832,7 @@ class N2kEncoder:
         return encoder(self, message)
 
 
-_ENCODERS: Final = {
+_ENCODERS: Final[dict[type, Callable[[N2kEncoder, Any], list[Frame]]]] = {
     PositionFix: N2kEncoder.gnss_position,
     CourseOverGround: N2kEncoder.cog_sog,
     Heading: N2kEncoder.heading,

@@ -887,6 +887,7 @@ def _encode_stdlib(obj: dict[str, Any]) -> bytes:
     return _STDLIB_ENCODER.encode(obj).encode("utf-8")
 
 
+_encode: Callable[[dict[str, Any]], bytes]
 try:
     import orjson
 except ImportError:  # pragma: no cover - orjson comes with nmea2000

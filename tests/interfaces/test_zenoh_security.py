@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from dpbase.schema import ConfigError
 from interfaces.zenoh import pki
 from interfaces.zenoh.config import ZenohConfig
 from interfaces.zenoh.loopback import free_tcp_port
@@ -226,3 +227,14 @@ def test_an_identity_with_two_roles_has_the_rights_of_both(vessel_pki: Path) -> 
         if hil is not None:
             hil.close()
         daemon.close()
+
+
+@pytest.mark.parametrize(("tls", "wrong"), [
+    ({"dir": "/etc/dpcontrol/tls", "identity": "dp controller"}, "a certificate common name"),
+    ({"dir": "/etc/dpcontrol/tls"}, "this node's name"),
+])
+def test_a_wrong_tls_identity_is_a_config_error_naming_the_key(tls: dict[str, str], wrong: str) -> None:
+    # (the key path was once built with a three-argument join that raised TypeError instead)
+    with pytest.raises(ConfigError, match=wrong) as caught:
+        ZenohSecurity.from_mapping(tls, None, False, "zenoh")
+    assert "zenoh.tls.identity" in str(caught.value)
