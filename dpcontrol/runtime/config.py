@@ -23,7 +23,10 @@ from dpcontrol.control import AutopilotConfig, MracConfig, PidConfig, control_co
 from dpcontrol.estimation import WaveFilterConfig
 from dpcontrol.guidance import ReferenceModelConfig, reference_config_from_mapping
 from dpcontrol.models.vessels import VesselData, vessel_from_config
+from dpcontrol.runtime.consequence import ConsequenceSettings
+from dpcontrol.runtime.deviation import DeviationSettings
 from dpcontrol.runtime.hub import HubConfig, SensorConfig, SensorKind
+from dpcontrol.runtime.thrusters import ThrusterMonitorSettings
 from interfaces.nmea0183.codec import DEFAULT_MAX_SENTENCE_CHARS
 from interfaces.recorder import RecorderSettings
 from interfaces.zenoh.config import ZenohConfig
@@ -107,61 +110,6 @@ class FallbackSettings:
     heading_loss_limit_s: float = 60.0
     heading_loss: str = "dead_reckoning"
     restore_within_s: float = 300.0
-
-
-@dataclass(frozen=True)
-class ThrusterMonitorSettings:
-    """Thruster fault detection from drive feedback (docs/fault-handling.md)."""
-
-    feedback_timeout_s: float = 2.0
-    mismatch_fraction: float = 0.25
-    # absolute floor of the mismatch limit, a share of each drive's rating: a drive asked for (almost) nothing is
-    # never judged on noise (see dpcontrol.runtime.thrusters)
-    mismatch_floor_fraction: float = 0.05
-    mismatch_persist_s: float = 5.0
-    shortfall_fraction: float = 0.1
-    shortfall_persist_s: float = 10.0
-
-
-@dataclass(frozen=True)
-class DeviationSettings:
-    """Position and heading deviation limits: the estimated low-frequency pose against the reference (the
-    guidance's desired pose of the moment, so a move along a travelling reference is no deviation). Above a
-    limit for ``persist_s``: ``position.deviation.warning`` / ``.alarm`` (in ``auto_position``),
-    ``heading.deviation.warning`` / ``.alarm`` (in ``auto_position`` and ``auto_heading``); cleared after
-    ``persist_s`` below :data:`~dpcontrol.runtime.deviation.CLEAR_FRACTION` of the limit. The defaults are a
-    full-scale vessel's (3 / 5 m, 3 / 5°); a model-scale vessel needs its own."""
-
-    position_warning_m: float = 3.0
-    position_alarm_m: float = 5.0
-    heading_warning_rad: float = math.radians(3.0)
-    heading_alarm_rad: float = math.radians(5.0)
-    persist_s: float = 1.0
-    drift_off_horizon_s: float = 30.0  # drift-off alarm: the alarm limit reached within this at the present trend
-    drift_off_persist_s: float = 3.0  # ... growing at a growing rate for this long (0 horizon: no drift-off alarm)
-
-
-@dataclass(frozen=True)
-class ConsequenceSettings:
-    """The worst-case failure check (consequence analysis) of a redundant (DP class 2/3) thruster layout.
-
-    Off when ``groups`` is empty (the default: a vessel without redundancy, such as CyberShip II with one bow
-    tunnel, would alarm whenever DP needs sway). In DP (``auto_position``) the commanded force is averaged
-    over ``averaging_s``; every ``period_s`` that average × ``demand_factor`` (an allowance for the waves
-    and gusts around it) is allocated to the thrusters left after each group's loss; a group whose loss
-    would leave part of it uncovered for ``persist_s`` raises ``consequence.<group>``. With
-    ``utilisation_warning`` set, a group whose loss would hold but leave a thruster working at or above that
-    share of its rating for ``persist_s`` raises the warning ``consequence.<group>.utilisation`` (the margin
-    an operating guideline asks for, before the alarm).
-    """
-
-    groups: tuple[FailureGroup, ...] = ()
-    period_s: float = 1.0
-    averaging_s: float = 30.0
-    demand_factor: float = 1.25
-    persist_s: float = 10.0
-    tolerance: float = 0.002
-    utilisation_warning: float | None = None
 
 
 @dataclass(frozen=True)

@@ -24,10 +24,33 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dpcontrol.allocation.consequence import FailureOutcome, WorstCaseFailure
+from dpcontrol.allocation.consequence import FailureGroup, FailureOutcome, WorstCaseFailure
 from dpcontrol.models.thrusters import ThrusterSpec
 from dpcontrol.runtime.alarms import AlarmRegistry, Severity
-from dpcontrol.runtime.config import ConsequenceSettings
+
+
+@dataclass(frozen=True)
+class ConsequenceSettings:
+    """The worst-case failure check (consequence analysis) of a redundant (DP class 2/3) thruster layout.
+
+    Off when ``groups`` is empty (the default: a vessel without redundancy, such as CyberShip II with one bow
+    tunnel, would alarm whenever DP needs sway). In DP (``auto_position``) the commanded force is averaged
+    over ``averaging_s``; every ``period_s`` that average × ``demand_factor`` (an allowance for the waves
+    and gusts around it) is allocated to the thrusters left after each group's loss; a group whose loss
+    would leave part of it uncovered for ``persist_s`` raises ``consequence.<group>``. With
+    ``utilisation_warning`` set, a group whose loss would hold but leave a thruster working at or above that
+    share of its rating for ``persist_s`` raises the warning ``consequence.<group>.utilisation`` (the margin
+    an operating guideline asks for, before the alarm).
+    """
+
+    groups: tuple[FailureGroup, ...] = ()
+    period_s: float = 1.0
+    averaging_s: float = 30.0
+    demand_factor: float = 1.25
+    persist_s: float = 10.0
+    tolerance: float = 0.002
+    utilisation_warning: float | None = None
+
 
 #: The mode the check runs in (station keeping).
 ACTIVE_MODE = "auto_position"

@@ -33,18 +33,36 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from dpcontrol.runtime.alarms import AlarmRegistry, Severity
-from dpcontrol.runtime.config import DeviationSettings
 
 #: An alarm clears below this share of its limit (hysteresis).
 CLEAR_FRACTION = 0.8
 DRIFT_WINDOW_S = 5.0  # the drift-off test's interval W [s]
 DRIFT_SAMPLE_S = 0.5  # the deviations it keeps are this far apart (≤ 2W/this of them: a short scan per step) [s]
 
+
+
+@dataclass(frozen=True)
+class DeviationSettings:
+    """Position and heading deviation limits: the estimated low-frequency pose against the reference (the
+    guidance's desired pose of the moment, so a move along a travelling reference is no deviation). Above a
+    limit for ``persist_s``: ``position.deviation.warning`` / ``.alarm`` (in ``auto_position``),
+    ``heading.deviation.warning`` / ``.alarm`` (in ``auto_position`` and ``auto_heading``); cleared after
+    ``persist_s`` below :data:`CLEAR_FRACTION` of the limit. The defaults are a
+    full-scale vessel's (3 / 5 m, 3 / 5°); a model-scale vessel needs its own."""
+
+    position_warning_m: float = 3.0
+    position_alarm_m: float = 5.0
+    heading_warning_rad: float = math.radians(3.0)
+    heading_alarm_rad: float = math.radians(5.0)
+    persist_s: float = 1.0
+    drift_off_horizon_s: float = 30.0  # drift-off alarm: the alarm limit reached within this at the present trend
+    drift_off_persist_s: float = 3.0  # ... growing at a growing rate for this long (0 horizon: no drift-off alarm)
 
 class _DriftOff:
     """The drift-off judgement of one quantity (module docstring): the recent deviations and since when growing."""

@@ -39,13 +39,13 @@ from typing import Any
 
 import numpy as np
 
+from dpbase.requests import SetpointRequest
 from dpcontrol.runtime.alarms import AlarmRegistry, Severity
 from dpcontrol.runtime.config import DaemonConfig
 from dpcontrol.runtime.hub import SensorHub
 from dpcontrol.runtime.step import DpController, Mode, StepOutput
 from dpcontrol.runtime.thrusters import ThrusterFeedback
 from interfaces.messages import LinkStatus, Measurement
-from interfaces.zenoh.schemas import SetpointRequest
 
 log = logging.getLogger(__name__)
 

@@ -27,12 +27,13 @@ from collections import deque
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from enum import Enum
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from dpbase.frames import body_to_ned
 from dpbase.geodesy import LocalFrame
+from dpbase.requests import RequestOutcome, SetpointRequest
 from dpbase.schema import ConfigError
 from dpcontrol.allocation import AllocationResult, ThrustAllocator
 from dpcontrol.control import ALL_DOFS, HEADING_ONLY, AutopilotConfig, HeadingAutopilot, MracController, make_controller
@@ -40,14 +41,15 @@ from dpcontrol.estimation import WaveFilterOutput
 from dpcontrol.estimation.wave_band import WaveBandMeter
 from dpcontrol.guidance import Reference, ReferenceModel
 from dpcontrol.runtime.alarms import AlarmRegistry, Severity
-from dpcontrol.runtime.config import DaemonConfig
 from dpcontrol.runtime.consequence import ConsequenceMonitor, ConsequenceReport
 from dpcontrol.runtime.deviation import DeviationMonitor
 from dpcontrol.runtime.estimators import WAVE_FILTER_KINDS, MassAdaptiveEstimator, make_estimator
 from dpcontrol.runtime.hub import HubOutput, SensorHub
 from dpcontrol.runtime.thrusters import ThrusterFeedback, ThrusterMonitor
 from interfaces.messages import Measurement
-from interfaces.zenoh.schemas import RequestOutcome, SetpointRequest
+
+if TYPE_CHECKING:  # the parser of the daemon's file reads transports and Zenoh settings: the step never loads it
+    from dpcontrol.runtime.config import DaemonConfig
 
 STATE_VERSION = 1
 CAPABILITY_FLOOR = 0.05  # share of the fleet's capability below which a demand counts as small [-]

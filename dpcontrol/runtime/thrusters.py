@@ -33,7 +33,21 @@ import numpy as np
 from dpbase.jit import b1_1d, f8, f8_1d, f8_2d, i8, i8_1d, kernel
 from dpcontrol.models.thrusters import ThrusterSpec
 from dpcontrol.runtime.alarms import AlarmRegistry, Severity
-from dpcontrol.runtime.config import ThrusterMonitorSettings
+
+
+@dataclass(frozen=True)
+class ThrusterMonitorSettings:
+    """Thruster fault detection from drive feedback (docs/fault-handling.md)."""
+
+    feedback_timeout_s: float = 2.0
+    mismatch_fraction: float = 0.25
+    # absolute floor of the mismatch limit, a share of each drive's rating: a drive asked for (almost) nothing is
+    # never judged on noise (see dpcontrol.runtime.thrusters)
+    mismatch_floor_fraction: float = 0.05
+    mismatch_persist_s: float = 5.0
+    shortfall_fraction: float = 0.1
+    shortfall_persist_s: float = 10.0
+
 
 MISMATCH_FILTER_S = 1.0  # time constant of the low-passed thrust mismatch [s]
 RELATIVE_MISMATCH = 0.5  # share of the expected thrust the delivered one may miss at low load [-]

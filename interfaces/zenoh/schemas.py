@@ -96,7 +96,6 @@ here ``?`` means the field may be left out (or be ``null``: not given)::
 
 from __future__ import annotations
 
-import itertools
 import json
 import math
 import re
@@ -106,7 +105,11 @@ from typing import Any, Final
 
 import numpy as np
 
-from dpbase.frames import body_to_ned, ssa
+# the request and sea-state types are the controller's vocabulary (dpbase): this wire module parses into and
+# encodes from them
+from dpbase.frames import ssa
+from dpbase.requests import RequestOutcome, SetpointRequest
+from dpbase.sea_states import SEA_STATES_SEED001, SeaStateTable
 from interfaces.messages import Rejected
 
 # --------------------------------------------------------------------------------------------
@@ -702,61 +705,6 @@ class SetpointLimits:
     max_move_m: float = 1_000.0
 
 
-@dataclass(frozen=True, slots=True)
-class SetpointRequest:
-    """A validated operator request (``dpcontrol.setpoint/1``); unset fields are ``None``.
-
-    Absolute ``north_m``/``east_m`` come together; ``heading_rad`` is wrapped to (−π, π]
-    (``heading_deg`` is converted). Relative parts: ``move_north_m``/``move_east_m`` in NED,
-    ``move_surge_m``/``move_sway_m`` along the *current setpoint's* heading, ``turn_rad``
-    clockwise. Use :meth:`resolve` to turn the request into an absolute target.
-
-    ``role`` and ``identity`` are never read from the payload: the receiver sets them from the authenticated
-    link the request came over (the sender's certificate common name and the role the configuration gives it;
-    ``None`` on an unauthenticated network).
-    """
-
-    t_s: float
-    seq: int
-    mode: str | None = None
-    north_m: float | None = None
-    east_m: float | None = None
-    heading_rad: float | None = None
-    move_north_m: float | None = None
-    move_east_m: float | None = None
-    move_surge_m: float | None = None
-    move_sway_m: float | None = None
-    turn_rad: float | None = None
-    reset_thruster: str | None = None
-    accept_reference: str | None = None
-    role: str | None = None
-    identity: str | None = None
-
-    @property
-    def changes_pose(self) -> bool:
-        """True when the request moves the position or heading setpoint (not only a mode change)."""
-        return any(v is not None for v in (self.north_m, self.heading_rad, self.move_north_m, self.move_east_m,
-                                           self.move_surge_m, self.move_sway_m, self.turn_rad))
-
-    def resolve(self, north_m: float, east_m: float, heading_rad: float) -> tuple[float, float, float]:
-        """The absolute target ``(north_m, east_m, heading_rad)`` given the current setpoint.
-
-        Body moves are rotated with the current setpoint heading ψ: ``Δη = R_nb(ψ) [Δsurge, Δsway, 0]``
-        (seed 002 eq. (3)); the result heading is wrapped with ``ssa``.
-        """
-        north = self.north_m if self.north_m is not None else north_m
-        east = self.east_m if self.east_m is not None else east_m
-        north += self.move_north_m or 0.0
-        east += self.move_east_m or 0.0
-        if self.move_surge_m is not None or self.move_sway_m is not None:
-            delta_n = body_to_ned(np.array([self.move_surge_m or 0.0, self.move_sway_m or 0.0, 0.0]), heading_rad)
-            north += float(delta_n[0])
-            east += float(delta_n[1])
-        heading = self.heading_rad if self.heading_rad is not None else heading_rad
-        heading = ssa(heading + (self.turn_rad or 0.0))
-        return north, east, heading
-
-
 def parse_command(payload: object, *, thruster_names: Collection[str] | None = None) -> CommandMessage | Rejected:
     """Validate a thruster command (as the drives/plant receive it).
 
@@ -1021,66 +969,6 @@ def estimate_payload(*, t_s: float, seq: int, estimator: str, eta_n: Any, nu_b: 
     })
 
 
-@dataclass(frozen=True, slots=True)
-class SeaStateTable:
-    """Sea-state classes by wave peak frequency ω₀ (seed 001 Table I by default).
-
-    Seed 001 Table I (for its ~100 m supply vessel): calm ω₀ > 0.79 rad/s, moderate 0.67–0.79,
-    high 0.45–0.67. The boundaries only mean something for that vessel class — pass another table
-    for another vessel. Each band is ``(lower, upper]``, except the last, which also includes its
-    lower bound; frequencies below the last band are ``below``.
-
-    Attributes
-    ----------
-    bands : tuple of (name, lower_rad_s)
-        From the calmest (highest frequency) down; lower bounds strictly decreasing.
-    below : str
-        Class for ω₀ below the last band.
-    """
-
-    bands: tuple[tuple[str, float], ...] = (("calm", 0.79), ("moderate", 0.67), ("high", 0.45))
-    below: str = "outside_table"
-
-    def __post_init__(self) -> None:
-        if not self.bands:
-            raise ValueError("sea-state table needs at least one band")
-        lowers = [lower for _, lower in self.bands]
-        positive = all(math.isfinite(x) and x > 0.0 for x in lowers)
-        if not positive or any(a <= b for a, b in itertools.pairwise(lowers)):
-            raise ValueError(f"sea-state band lower bounds must be positive and strictly decreasing, got {lowers}")
-        names = [name for name, _ in self.bands] + [self.below]
-        if len(set(names)) != len(names):
-            raise ValueError(f"sea-state class names must be unique, got {names}")
-
-    @classmethod
-    def froude_scaled(cls, length_m: float, reference_length_m: float = 100.0) -> SeaStateTable:
-        """Seed 001 Table I carried to a vessel of length ``length_m`` [m] by Froude scaling.
-
-        The table was drawn for "a typical 100 m DP supply vessel" (seed 001, Sec. IV); wave frequencies scale
-        as ``sqrt(reference_length_m / length_m)`` between geometrically similar hulls, so a 1:70 model sees a
-        sea "calm" above ``0.79 · sqrt(100 / 1.255) ≈ 7.1 rad/s``. Below the last band the sea is longer than
-        the table's highest, for this hull: ``long_swell``.
-        """
-        if not (math.isfinite(length_m) and length_m > 0.0 and math.isfinite(reference_length_m)
-                and reference_length_m > 0.0):
-            raise ValueError(f"vessel length must be positive, got {length_m} (reference {reference_length_m})")
-        factor = math.sqrt(reference_length_m / length_m)
-        return cls(bands=tuple((name, lower * factor) for name, lower in cls().bands), below="long_swell")
-
-    def classify(self, omega_rad_s: float | None) -> str | None:
-        """Class of peak frequency ``omega_rad_s`` [rad/s]; ``None`` when unknown (None/NaN)."""
-        if omega_rad_s is None or not math.isfinite(omega_rad_s):
-            return None
-        last = len(self.bands) - 1
-        for i, (name, lower) in enumerate(self.bands):
-            if omega_rad_s > lower or (i == last and omega_rad_s == lower):
-                return name
-        return self.below
-
-
-SEA_STATES_SEED001 = SeaStateTable()
-
-
 def mmae_payload(*, t_s: float, seq: int, omegas_rad_s: Any, weights: Any, omega_hat_rad_s: float | None,
                  sea_states: SeaStateTable = SEA_STATES_SEED001) -> bytes:
     """Encode the MMAE bank state: model frequencies [rad/s], weights, ω̂ [rad/s] and its sea-state class.
@@ -1175,21 +1063,6 @@ class CycleTiming:
     p99_us: float | None
     missed_deadlines: int
     host_steal_percent: float | None = None
-
-
-@dataclass(frozen=True, slots=True)
-class RequestOutcome:
-    """What became of an operator request the controller took (``dp/<vessel>/setpoint``): the request's
-    ``seq``, the controller time [s] of the step that took it, ``applied`` or ``refused``, and what is now in
-    force or why not; the role and identity it came in under (see :class:`SetpointRequest`). A sender finds its
-    own request by its ``seq``."""
-
-    seq: int
-    t_s: float
-    outcome: str
-    detail: str
-    role: str | None = None
-    identity: str | None = None
 
 
 @dataclass(frozen=True, slots=True)

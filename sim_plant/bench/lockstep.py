@@ -27,6 +27,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from dpbase.requests import SetpointRequest
 from dpcontrol.platform_info import available_memory_bytes
 from dpcontrol.runtime.alarms import AlarmEvent
 from dpcontrol.runtime.config import DaemonConfig, SensorRoute, parse_config
@@ -38,7 +39,6 @@ from dpcontrol.runtime.thrusters import ThrusterFeedback
 from dpcontrol.runtime.transport_health import InputHealth
 from interfaces.mavlink.codec import HeartbeatMonitor, MavlinkEncoder
 from interfaces.messages import LinkStatus, Measurement, PositionFix
-from interfaces.zenoh.schemas import SetpointRequest
 from sim_plant.encoding import DATE_DAYS_SINCE_1970, MavlinkSensorEncoder, N2kSensorEncoder, NmeaSensorEncoder
 from sim_plant.plant import Plant
 from sim_plant.protocol_faults import (

@@ -10,6 +10,8 @@
 from __future__ import annotations
 
 import ast
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -97,3 +99,21 @@ def test_plant_never_imports_the_composition_layer() -> None:
 def test_the_composition_packages_exist() -> None:
     for name in COMPOSITION:  # (a renamed package would silently leave the plant rule checking nothing of it)
         assert (ROOT / "sim_plant" / name / "__init__.py").exists()
+
+
+#: What the per-step logic must never load, even indirectly: the wire (Zenoh and its schemas, TLS), the
+#: transports, the recorder and the daemon's file parser (which reads transport and Zenoh settings).
+SERVICE_MODULES = ("zenoh", "serial", "can", "pymavlink", "cryptography", "interfaces.zenoh", "interfaces.recorder",
+                   "interfaces.nmea0183", "interfaces.nmea2000", "interfaces.mavlink", "sim_plant",
+                   "dpcontrol.runtime.config", "dpcontrol.runtime.daemon")
+
+
+@pytest.mark.parametrize("module", ["dpcontrol.runtime.step", "dpcontrol.runtime.hub"])
+def test_the_step_and_the_hub_load_no_transport_wire_or_recorder(module: str) -> None:
+    """Checked on the modules Python actually loads (a fresh interpreter), so an indirect import counts too."""
+    probe = (f"import sys, {module}\n"
+             f"bad = {SERVICE_MODULES!r}\n"
+             "print('\\n'.join(sorted(m for m in sys.modules if any(m == b or m.startswith(b + '.') for b in bad))))")
+    result = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120, cwd=ROOT,
+                            check=True)
+    assert result.stdout.split() == []

@@ -13,12 +13,12 @@ import pytest
 import yaml
 
 from dpbase.geodesy import LocalFrame
+from dpbase.requests import SetpointRequest
 from dpcontrol.runtime.alarms import Severity
 from dpcontrol.runtime.config import parse_config
 from dpcontrol.runtime.step import DpController, Mode
 from dpcontrol.runtime.thrusters import ThrusterFeedback
 from interfaces.messages import FixQuality, Heading, Measurement, PositionFix
-from interfaces.zenoh.schemas import SetpointRequest
 
 DT = 0.1
 ROOT = Path(__file__).resolve().parents[2]

@@ -5,11 +5,11 @@ anywhere but the black-box record."""
 
 from __future__ import annotations
 
+from dpbase.requests import SetpointRequest
 from dpcontrol.bench import bench_config
 from dpcontrol.runtime.daemon import status_payload
 from dpcontrol.runtime.step import REQUEST_REFUSED_HOLD_S, DpController, Mode
 from interfaces.zenoh import schemas
-from interfaces.zenoh.schemas import SetpointRequest
 
 
 def test_a_refused_request_is_reported_with_its_seq_and_reason_then_cleared() -> None:
