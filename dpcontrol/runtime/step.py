@@ -445,10 +445,10 @@ class DpController:
                     out.mrac = parameters if type(parameters) is dict else dict(parameters)
                 if self._mrac is not None and self._mrac.adapting:
                     self._supervise(self._mrac, t_s)
-                if self._mass_adaptive is not None and not any(self.controller.excited):
+                if self._mass_adaptive is not None and self._mrac is not None and not any(self._mrac.excited):
                     # only when â₂ changed (it is held between moves): saves an array and the filter's
                     # ratio update on most steps; the same values give the same ratio
-                    mass = self.controller.mass_hat_floats
+                    mass = self._mrac.mass_hat_floats
                     if mass != self._mass_sent:
                         self._mass_adaptive.set_mass_estimate(np.array(mass))
                         self._mass_sent = mass
@@ -474,9 +474,8 @@ class DpController:
         if self.controller is not None and self.mode is not Mode.STANDBY:
             self.controller.notify_achieved(out.tau_achieved_b)
         self._capability_alarm(t_s)
-        reference = out.reference
         estimate = out.estimate
-        tracked = None if reference is None else reference.eta_d_n
+        tracked = None if out.reference is None else out.reference.eta_d_n
         mrac = out.mrac
         if mrac is not None and tracked is not None:
             # MRAC makes the vessel follow its reference model y_M (seed 003 eq. (15)), which trails η_d by
