@@ -14,7 +14,7 @@ Measures
   started, fixed sparsity) — quadprog and OSQP only if importable (they are comparison-only
   dependencies: ``pip install quadprog osqp``).
 * ``--offloading``: seed 003's 12 h loading of the shuttle tanker on a single-DOF surge model at
-  dt = 0.1 s (:mod:`dpcontrol.control.offloading_case`): MRAC vs the fixed PD tuned at ballast.
+  dt = 0.1 s (:mod:`sim_plant.bench.offloading_case`): MRAC vs the fixed PD tuned at ballast.
 * ``--capability``: the largest wind each built-in DP layout holds from every direction
   (:mod:`dpcontrol.allocation.capability`), all thrusters and worst single failure.
 
@@ -49,10 +49,10 @@ import numpy as np
 from dpcontrol.allocation import ThrustAllocator
 from dpcontrol.allocation.capability import capability_mps
 from dpcontrol.control import MracController, PidController, default_mrac_config, default_pid_config
-from dpcontrol.control.offloading_case import OffloadingCase, simulate_offloading
 from dpcontrol.guidance import ReferenceModel, default_reference_config
 from dpcontrol.models.thrusters import ThrusterSpec
 from dpcontrol.models.vessels import BUILTIN_VESSELS, SHUTTLE_TANKER, SUPPLY
+from sim_plant.bench.offloading_case import OffloadingCase, simulate_offloading
 
 DT_S = 0.1
 

@@ -88,7 +88,7 @@ max ÿ_M = 1.8·10⁻³ instead of β₀ℓ = 2·10⁻² m/s²). :func:`default_
 the excitation energy of a typical move through the vessel's default guidance
 (:func:`reference_excitation`) and sets the gating thresholds from that move;
 ``step_driven=True`` keeps the step design (the single-DOF study of
-:mod:`dpcontrol.control.offloading_case`).
+:mod:`sim_plant.bench.offloading_case`).
 
 In the runtime (:mod:`dpcontrol.runtime.step`) an adapting MRAC also hands its mass estimate to the
 DP wave filter between moves (:class:`~dpcontrol.runtime.estimators.MassAdaptiveEstimator`): a filter
@@ -416,7 +416,7 @@ def default_mrac_config(vessel: VesselData, natural_period_s: float | None = Non
     ζ = 1; Γ from :func:`adaptation_gains` with the constants above and the excitation of a typical
     move through ``guidance`` (default: the vessel's :func:`default_reference_config`), see
     :func:`reference_excitation`. ``step_driven``: the reference model is driven by the raw set-point
-    steps, as in seed 003's single-DOF study (:mod:`dpcontrol.control.offloading_case`), not by a guidance.
+    steps, as in seed 003's single-DOF study (:mod:`sim_plant.bench.offloading_case`), not by a guidance.
     """
     period = float(natural_period_s) if natural_period_s is not None else default_natural_period_s(vessel)
     periods = (period, period, period)

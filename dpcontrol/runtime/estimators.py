@@ -298,7 +298,7 @@ class MassAdaptiveEstimator:
     predicts accelerations up to 2.66× too large: its LF estimate and bias are distorted during every
     move, and the MRAC, which learns from that estimate, is led astray (measured on the plant: â₂ 47 %
     above the true mass after 12 h). Seed 003's single-DOF study gives the filter the true mass
-    (:mod:`dpcontrol.control.offloading_case`); on a vessel the best model available is the MRAC's.
+    (:mod:`sim_plant.bench.offloading_case`); on a vessel the best model available is the MRAC's.
 
     With ``M̂ = diag(â₂)`` the filter is fed ``τ' = M₀ M̂⁻¹ τ``: its model ``M₀ ν̇ + D₀ν = τ' + b'``
     becomes ``M̂ ν̇ + D₀ M̂ M₀⁻¹ ν = τ + M̂ M₀⁻¹ b'``, the true dynamics when ``M̂ = M`` and the damping

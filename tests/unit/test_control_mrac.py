@@ -16,9 +16,9 @@ from dpbase.schema import ConfigError
 from dpcontrol.control import MracConfig, MracController, default_mrac_config
 from dpcontrol.control.factory import control_config_from_mapping, make_controller
 from dpcontrol.control.mrac import PARAMETER_NAMES, REFERENCE_MODEL_NAMES, reference_excitation
-from dpcontrol.control.offloading_case import OffloadingCase, default_offloading_mrac_config, simulate_offloading
 from dpcontrol.guidance import Reference, ReferenceModel, default_reference_config
 from dpcontrol.models.vessels import SHUTTLE_TANKER, SHUTTLE_TANKER_FULL, SUPPLY
+from sim_plant.bench.offloading_case import OffloadingCase, default_offloading_mrac_config, simulate_offloading
 
 SURGE = (True, False, False)
 
