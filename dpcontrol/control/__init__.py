@@ -1,7 +1,7 @@
 """DP position controllers (nonlinear PID / PD + bias, MRAC), heading autopilot, wind feed-forward."""
 
 from dpcontrol.control.autopilot import AutopilotConfig, AutopilotOutput, HeadingAutopilot
-from dpcontrol.control.base import ALL_DOFS, HEADING_ONLY, ControlOutput, PositionController
+from dpcontrol.control.base import ALL_DOFS, HEADING_ONLY, ControlOutput, MassAdaptation, PositionController
 from dpcontrol.control.factory import control_config_from_mapping, make_controller
 from dpcontrol.control.mrac import MracConfig, MracController, default_mrac_config
 from dpcontrol.control.pid import PidConfig, PidController, default_pid_config, pole_placement_gains
@@ -20,6 +20,7 @@ __all__ = [
     "BlendermannCoefficients",
     "ControlOutput",
     "HeadingAutopilot",
+    "MassAdaptation",
     "MracConfig",
     "MracController",
     "PidConfig",

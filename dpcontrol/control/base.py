@@ -51,9 +51,52 @@ class ControlOutput:
     parameters: Mapping[str, float] | None = None
 
 
+class MassAdaptation(Protocol):
+    """What a controller that estimates the vessel's inertia offers its supervisor (the MRAC, seed 003).
+
+    The runtime reads it through :attr:`PositionController.mass_adaptation` to stop an estimate that ran onto
+    its projection bound and to hand the estimate to the wave filter, without knowing the controller's kind.
+    """
+
+    @property
+    def adapting(self) -> bool:
+        """Whether the estimates adapt now (False: held at nominal)."""
+        ...
+
+    @property
+    def excited(self) -> tuple[bool, bool, bool]:
+        """Per DOF (surge, sway, yaw): the last step moved the mass estimate."""
+        ...
+
+    @property
+    def mass_hat_floats(self) -> tuple[float, float, float]:
+        """The mass estimate ``â₂`` [kg, kg, kg·m²]."""
+        ...
+
+    @property
+    def mass_nominal(self) -> tuple[float, float, float]:
+        """The nominal masses the estimate starts from [kg, kg, kg·m²]."""
+        ...
+
+    def mass_at_bound(self) -> int | None:
+        """The first DOF whose estimate sits on its projection bound, or None."""
+        ...
+
+    def suspend_adaptation(self) -> None:
+        """Return to the nominal parameters and adapt no more (until a restart)."""
+        ...
+
+
 @runtime_checkable
 class PositionController(Protocol):
-    """What the runtime calls every control period (PID and MRAC both implement it)."""
+    """What the runtime calls every control period (PID and MRAC both implement it).
+
+    ``mass_adaptation`` is the controller's inertia estimation for the runtime to supervise (the MRAC
+    itself), or None for a controller with fixed parameters.
+    """
+
+    @property
+    def mass_adaptation(self) -> MassAdaptation | None: ...
 
     def step(self, dt_s: float, eta_hat_n: np.ndarray, nu_hat_b: np.ndarray, bias_hat_b: np.ndarray | None,
              reference: Reference, *, dof_enabled: Sequence[bool] = ALL_DOFS,

@@ -568,6 +568,17 @@ class MracController:
         return self._config
 
     @property
+    def mass_adaptation(self) -> MracController:
+        """The controller itself: its mass estimate is what a supervisor watches (see ``PositionController``)."""
+        return self
+
+    @property
+    def mass_nominal(self) -> tuple[float, float, float]:
+        """The nominal masses ``a₂(0)`` [kg, kg, kg·m²] (the configuration's)."""
+        m = self._config.mass_nominal
+        return (float(m[0]), float(m[1]), float(m[2]))
+
+    @property
     def adapting(self) -> bool:
         """Whether the parameters adapt (False: the fixed PD of seed 003 eq. (25))."""
         return self._adapt

@@ -300,6 +300,11 @@ class PidController:
         return self._config
 
     @property
+    def mass_adaptation(self) -> None:
+        """None: the gains are fixed (see ``PositionController``)."""
+        return None
+
+    @property
     def integral_force_b(self) -> np.ndarray:
         """The integral force ``τ_I`` [N, N, N·m] (copy)."""
         return self._state[P_INTEGRAL].copy()

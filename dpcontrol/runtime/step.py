@@ -36,7 +36,7 @@ from dpbase.geodesy import LocalFrame
 from dpbase.requests import RequestOutcome, SetpointRequest
 from dpbase.schema import ConfigError
 from dpcontrol.allocation import AllocationResult, ThrustAllocator
-from dpcontrol.control import ALL_DOFS, HEADING_ONLY, AutopilotConfig, HeadingAutopilot, MracController, make_controller
+from dpcontrol.control import ALL_DOFS, HEADING_ONLY, AutopilotConfig, HeadingAutopilot, MassAdaptation, make_controller
 from dpcontrol.estimation import WaveFilterOutput
 from dpcontrol.estimation.wave_band import WaveBandMeter
 from dpcontrol.guidance import Reference, ReferenceModel
@@ -165,12 +165,11 @@ class DpController:
         # An adapting MRAC with a DP wave filter: the filter's model inertia follows the MRAC's mass estimate
         # between set-point moves (see MassAdaptiveEstimator: on M₀ alone the filter misleads the MRAC).
         self._mass_adaptive: MassAdaptiveEstimator | None = None
-        if isinstance(self.controller, MracController) and self.controller.adapting \
-                and config.estimator.kind in WAVE_FILTER_KINDS:
+        # MRAC supervision (_supervise): an estimate on a projection bound stops the adaptation
+        self._mrac = None if self.controller is None else self.controller.mass_adaptation
+        if self._mrac is not None and self._mrac.adapting and config.estimator.kind in WAVE_FILTER_KINDS:
             self._mass_adaptive = MassAdaptiveEstimator(self.estimator, np.diag(vessel.mass_matrix))
             self.estimator = self._mass_adaptive
-        # MRAC supervision (_supervise): an estimate on a projection bound stops the adaptation
-        self._mrac = self.controller if isinstance(self.controller, MracController) else None
         self.thrusters = vessel.thrusters
         with _section_of_config("allocation", config):
             self.allocator = ThrustAllocator(vessel.thrusters, self.dt_s, **dict(config.allocation))
@@ -704,7 +703,7 @@ class DpController:
             self.alarms.clear(t_s, "thrusters.insufficient")
             self._insufficient_for = None
 
-    def _supervise(self, controller: MracController, t_s: float) -> None:
+    def _supervise(self, controller: MassAdaptation, t_s: float) -> None:
         """``control.adaptation``: an MRAC estimate on its projection bound suspends the adaptation.
 
         The controller returns to its nominal parameters, the fixed PD of seed 003 eq. (25), which holds
@@ -714,7 +713,7 @@ class DpController:
         dof = controller.mass_at_bound()
         if dof is None:
             return
-        ratio = controller.mass_hat_floats[dof] / controller.config.mass_nominal[dof]
+        ratio = controller.mass_hat_floats[dof] / controller.mass_nominal[dof]
         controller.suspend_adaptation()  # (adapting is False from here on: no more supervision)
         self.alarms.raise_(t_s, "control.adaptation", Severity.ALARM,
                            f"MRAC {_MASS_NAMES[dof]} estimate reached its bound ({ratio:.2g}x nominal): adaptation "

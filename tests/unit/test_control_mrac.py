@@ -13,7 +13,7 @@ import pytest
 from scipy.linalg import solve_continuous_lyapunov
 
 from dpbase.schema import ConfigError
-from dpcontrol.control import MracConfig, MracController, default_mrac_config
+from dpcontrol.control import MracConfig, MracController, PositionController, default_mrac_config
 from dpcontrol.control.factory import control_config_from_mapping, make_controller
 from dpcontrol.control.mrac import PARAMETER_NAMES, REFERENCE_MODEL_NAMES, reference_excitation
 from dpcontrol.guidance import Reference, ReferenceModel, default_reference_config
@@ -196,6 +196,15 @@ def test_an_estimate_on_its_bound_is_reported_and_suspension_restores_the_fixed_
     assert not np.allclose(adapting.mass_hat, nominal)
     np.testing.assert_array_equal(controller.mass_hat, nominal)
     assert controller.excited == (False, False, False)
+
+
+def test_the_runtime_finds_the_mass_adaptation_through_the_controller_protocol() -> None:
+    """The step supervises whatever ``mass_adaptation`` a controller offers (no test of its class)."""
+    mrac = MracController(default_mrac_config(SUPPLY))
+    assert isinstance(mrac, PositionController) and mrac.mass_adaptation is mrac
+    assert mrac.mass_nominal == tuple(float(m) for m in default_mrac_config(SUPPLY).mass_nominal)
+    pid = make_controller(control_config_from_mapping({"kind": "pid"}, SUPPLY))
+    assert isinstance(pid, PositionController) and pid.mass_adaptation is None
 
 
 def test_nothing_is_learnt_after_an_entry_until_the_reference_has_rested() -> None:
