@@ -429,6 +429,7 @@ class N2kLink(Link):
                 raise HilLinkError(f"transport {transport.name}: cannot start the python-can-remote server on "
                                    f"{host}:{port}: {error}") from error
         self.bus: Any
+        self.writer: GatewayTwin | N2kCanWriter  # (the same interface: open, send, counters, close)
         if transport.interface in GATEWAY_KINDS:  # the emulator plays the gateway (YD RAW server, NGT-1 pty)
             self.bus = GatewayConfig(transport.interface, transport.channel, dict(transport.options))
             self.writer = GatewayTwin(self.bus)

@@ -94,12 +94,15 @@ class PlantZenoh:
         self._lock = threading.Lock()
         self._listeners: list[Callable[[], None]] = []
         self.node = ZenohNode(config, vessel, clock=clock)
+        # the subscribers' sinks, kept with their item types (a subscriber's .sink is typed as any sink)
+        self._command_inbox: Inbox[Received[ReceivedCommand]] = Inbox(maxlen=COMMAND_INBOX)
+        self._status_slot: LatestSlot[Received[dict[str, Any]]] = LatestSlot(on_put=self._notify)
         try:
             self.commands = self.node.subscribe(
-                "command", Inbox(maxlen=COMMAND_INBOX),
+                "command", self._command_inbox,
                 parse=functools.partial(parse_command_keeping_raw, thruster_names=set(self.thruster_names)))
             self.feedback = self.node.publisher("feedback")
-            self.status = self.node.subscribe("status", LatestSlot(on_put=self._notify))
+            self.status = self.node.subscribe("status", self._status_slot)
             self.setpoint = self.node.publisher("setpoint")
             self.controller = self.node.watch_alive("controller", on_change=self._on_controller)
             self.token = self.node.declare_alive("plant")
@@ -138,7 +141,11 @@ class PlantZenoh:
     # -- drives --------------------------------------------------------------------------------------
     def take_commands(self) -> list[Received[ReceivedCommand]]:
         """The commands received since the last call, oldest first."""
-        return self.commands.sink.drain()
+        return self._command_inbox.drain()
+
+    def latest_status(self) -> Received[dict[str, Any]] | None:
+        """The controller's newest status (None before the first), without consuming it."""
+        return self._status_slot.latest()
 
     def publish_feedback(self, t_s: float, names: Sequence[str], thrust_n: Sequence[float],
                          azimuth_rad: Sequence[float], ready: Sequence[bool]) -> tuple[int, bytes | None]:
@@ -155,11 +162,11 @@ class PlantZenoh:
             "endpoints": {"listen": list(self.node.config.listen), "connect": list(self.node.config.connect)},
             "peers": len(self.node.peers()),
             "commands": {"received": stats.received, "accepted": stats.accepted, "rejected": stats.rejected,
-                         "dropped_inbox_full": self.commands.sink.dropped,
+                         "dropped_inbox_full": self._command_inbox.dropped,
                          "last_rejection": None if stats.last_rejection is None else
                          f"{stats.last_rejection.reason}: {stats.last_rejection.detail}"},
             "feedback_put_failures": self.feedback.failures,
-            "status_received": self.status.sink.count,
+            "status_received": self._status_slot.count,
         }
 
     def close(self) -> None:
@@ -299,7 +306,7 @@ class Operator:
         state = self._engage_state
         if state["engaged"] or state["gave_up"]:
             return math.inf
-        status = self._zenoh.status.sink.latest()
+        status = self._zenoh.latest_status()
         if not present or status is None:
             return math.inf  # wait for the controller and its first status
         if status.message.get("mode") == self._mode:

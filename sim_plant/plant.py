@@ -53,6 +53,9 @@ _FAILURE_OF = {"thruster_stuck": "stuck", "thruster_zero": "zero", "thruster_wro
                "thruster_not_ready": "not_ready"}
 # random streams (first key after the seed), so adding e.g. a sensor never changes the waves
 _STREAM_WAVES, _STREAM_CURRENT, _STREAM_WIND, _STREAM_SENSOR = 1, 2, 3, 4
+# what Plant.record_values returns: 15 floats, the two wave peaks (None in calm water), 2 floats
+RecordValues = tuple[float, float, float, float, float, float, float, float, float, float, float, float, float,
+                     float | None, float | None, float, float]
 
 
 @dataclass(frozen=True, slots=True)
@@ -420,12 +423,12 @@ class Plant:
         self._truth_cache = truth
         return truth
 
-    def record_values(self) -> tuple[float, ...]:
+    def record_values(self) -> RecordValues:
         """The fields of :attr:`truth` a lockstep time-series row keeps, computed alone (the same numbers).
 
         Returns
         -------
-        tuple
+        RecordValues
             ``t_s, north_m, east_m, heading_rad, north_total_m, east_total_m, heading_total_rad, surge_mps,
             sway_mps, yaw_rate_radps, tau_act_b[0], tau_act_b[1], tau_act_b[2], omega_peak_rad_s,
             motion_peak_rad_s, mass_factor, surge_mass_kg`` (the peaks None in calm water).

@@ -32,6 +32,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -125,6 +126,13 @@ def _finite_number(value: object) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
+def _float_view(array: np.ndarray) -> memoryview[float]:
+    """A memoryview of a contiguous float64 array (items are Python floats; writes go to the array)."""
+    # numpy types ndarray.data as a memoryview of ints whatever the dtype; memoryview(array) would be the
+    # same view, but numpy's stubs give ndarray the buffer protocol only from Python 3.12
+    return cast("memoryview[float]", array.data)
+
+
 class ThrusterDrives:
     """The bank of drives of one vessel.
 
@@ -175,9 +183,9 @@ class ThrusterDrives:
         self.arrays = (self._const, self._state, self._codes, self._bank)
         """The kernels' drive arguments ``(const, state, codes, bank)`` (state and bank change in place)."""
         # memoryviews for the writes of command(): a float item write costs half a numpy one
-        self._command_rows = tuple(memoryview(self._state[row])
+        self._command_rows = tuple(_float_view(self._state[row])
                                    for row in (S_TARGET_THRUST, S_TARGET_ANGLE, S_COMMAND_TIME))
-        self._bank_view = memoryview(self._bank)
+        self._bank_view = _float_view(self._bank)
 
     @property
     def _target_thrust(self) -> list[float]:

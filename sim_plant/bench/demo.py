@@ -406,12 +406,12 @@ def describe_summary(summary: dict[str, Any]) -> list[str]:
     published = (loop.get("start_to_command_published_us") or {}).get("p99")
     jitter = (loop.get("period_jitter_us") or {}).get("p99")
     if published is not None and jitter is not None:
-        def verdict(value: float, target: float) -> str:
+        def timing(value: float, target: float) -> str:
             return f"{value / 1000:.2f} ms ({'within' if value <= target else 'OVER'} {target / 1000:g} ms)"
         lines.append(f"control loop: {loop.get('cycles', 0)} cycles, {loop.get('missed_deadlines', 0)} missed "
                      f"deadlines, {loop.get('step_errors', 0)} step errors; p99 cycle start → command published "
-                     f"{verdict(published, PUBLISHED_P99_TARGET_US)}, p99 period jitter "
-                     f"{verdict(jitter, JITTER_P99_TARGET_US)}; loop thread: {loop.get('scheduling', 'unknown')}")
+                     f"{timing(published, PUBLISHED_P99_TARGET_US)}, p99 period jitter "
+                     f"{timing(jitter, JITTER_P99_TARGET_US)}; loop thread: {loop.get('scheduling', 'unknown')}")
     else:
         lines.append("control loop: no timing (the daemon wrote no stats)")
     lines.append(f"{describe_steal(summary.get('host_steal'))} during the run: the hypervisor's share of the "
@@ -434,13 +434,15 @@ def describe_summary(summary: dict[str, Any]) -> list[str]:
     return lines
 
 
-def _read_csv(path: Path) -> dict[str, np.ndarray]:
+def _read_csv(path: Path) -> dict[str, Any]:
+    """Each column of a CSV file as a float array (NaN where a cell is not a number), and the text: its
+    rows as lists of cells under ``"_text"``, its header under ``"_header"``; empty when there is no file."""
     if not path.exists():
         return {}
     with path.open(encoding="utf-8") as handle:
         header = handle.readline().strip().split(",")
         rows = [line.strip().split(",") for line in handle if line.strip()]
-    columns: dict[str, np.ndarray] = {}
+    columns: dict[str, Any] = {}
     for i, name in enumerate(header):
         values = []
         for row in rows:
@@ -449,8 +451,8 @@ def _read_csv(path: Path) -> dict[str, np.ndarray]:
             except ValueError:
                 values.append(math.nan)
         columns[name] = np.array(values)
-    columns["_text"] = rows  # type: ignore[assignment]
-    columns["_header"] = header  # type: ignore[assignment]
+    columns["_text"] = rows
+    columns["_header"] = header
     return columns
 
 
@@ -466,7 +468,10 @@ def write_report(run_dir: Path, wiring: dict[str, Any], *, daemon_code: int | No
     report.mkdir(exist_ok=True)
     truth = _read_csv(run_dir / "plant" / "truth.csv")
     commands = _read_csv(run_dir / "plant" / "commands.csv")
-    scenario = load_yaml((run_dir / "scenario.yaml").read_text(encoding="utf-8"))
+    scenario_file = run_dir / "scenario.yaml"
+    scenario = load_yaml(scenario_file.read_text(encoding="utf-8"))
+    if not isinstance(scenario, dict):  # (prepare() wrote it from a mapping)
+        raise DemoError(f"{scenario_file}: not a scenario mapping")
     summary: dict[str, Any] = {"run_dir": str(run_dir), "dpcontrol_exit": daemon_code, "sim_plant_exit": plant_code,
                                "host_steal": host_steal, "interrupted_by": interrupted_by}
     stats_file = run_dir / "dpcontrol-stats.json"

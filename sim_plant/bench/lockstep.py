@@ -23,7 +23,7 @@ import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from itertools import repeat
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, cast
 
 import numpy as np
 
@@ -70,7 +70,7 @@ def controller_mapping(scenario: Scenario, overrides: Mapping[str, Any] | None =
     ``overrides`` (same keys) win over both. DP engages 20 s after the estimator starts unless ``loop`` says
     otherwise.
     """
-    sensors = []
+    sensors: list[dict[str, Any]] = []
     transports: dict[str, dict[str, Any]] = {}
     address = N2K_FIRST_ADDRESS
     for spec in scenario.sensors:
@@ -295,6 +295,8 @@ class _Inputs:
                 self.unplugged.discard(transport)
                 self.links.append(LinkStatus(t, transport, True, "serial port reopened"))
         else:  # silence: the target's autopilot sends no HEARTBEAT until the fault ends
+            if path.system_id is None:  # (the scenario accepts heartbeat_loss only on a MAVLink sensor)
+                raise ValueError(f"heartbeat_loss on {sensor}: not a MAVLink sensor")
             key = (transport, path.system_id)
             self._silent_until[key] = max(fault.end_s, self._silent_until.get(key, fault.end_s))
         self.applied.append(entry)
@@ -336,8 +338,9 @@ class _Inputs:
                 self.stages[transport].feed(t, encoder.heartbeat(), None)
         for transport, monitor in self._monitors.items():
             for change in monitor.check(t):
-                system_id = None if change.key is None else change.key[0]
-                self.links.append(LinkStatus(change.t_s, link_source(transport, system_id), change.connected,
+                # the monitor's keys are (system, component), as _heartbeat beats them
+                system = None if change.key is None else cast(tuple[int, int], change.key)[0]
+                self.links.append(LinkStatus(change.t_s, link_source(transport, system), change.connected,
                                              change.detail))
 
     def expire(self, t: float) -> None:
@@ -732,6 +735,7 @@ class LockstepSimulation:
         drive_names = plant.drives.names
         row_bytes = data.strides[0]
         pack_row = struct.Struct(f"={len(names)}d").pack_into
+        data_buffer = data.data  # (its memoryview: numpy's stubs give ndarray the buffer protocol only from 3.12)
         mode_changes: list[tuple[float, str, str, str]] = []
         alarm_events: list[AlarmEvent] = []
         n_models = len(self.omegas)
@@ -780,7 +784,7 @@ class LockstepSimulation:
                 plant.command_arrays(t, drive_order, out.thrust_n, out.azimuth_rad, out.enabled)
                 row = self._record(out, n_models, n_names)
                 try:  # the float64s of the row packed into its bytes: a third cheaper than numpy's row assignment
-                    pack_row(data, row_bytes * k if timeseries else 0, *row)
+                    pack_row(data_buffer, row_bytes * k if timeseries else 0, *row)
                 except struct.error:  # a value struct cannot pack as a double: numpy converts it (or says why not)
                     data[k if timeseries else 0] = row
                 if observer is not None:

@@ -62,6 +62,10 @@ def _max_abs(x: np.ndarray) -> float | None:
     return None if x.size == 0 else float(np.max(np.abs(x)))
 
 
+def _degrees(value_rad: float | None) -> float | None:
+    return None if value_rad is None else math.degrees(value_rad)
+
+
 def _round(value: float | None, digits: int = 6) -> float | None:
     return None if value is None or not math.isfinite(value) else round(value, digits)
 
@@ -158,8 +162,8 @@ def summarise(result: RunResult) -> dict[str, Any]:
         if np.any(mode[sl] == 2):  # position errors only mean something in DP (auto_position)
             metrics["position_error_rms_m"] = _round(_rms(horizontal[mode[sl] == 2]))
             metrics["position_error_max_m"] = _round(_max_abs(horizontal[mode[sl] == 2]))
-        metrics["heading_error_rms_deg"] = _round(None if _rms(e_h) is None else math.degrees(_rms(e_h)))
-        metrics["heading_error_max_deg"] = _round(None if _max_abs(e_h) is None else math.degrees(_max_abs(e_h)))
+        metrics["heading_error_rms_deg"] = _round(_degrees(_rms(e_h)))
+        metrics["heading_error_max_deg"] = _round(_degrees(_max_abs(e_h)))
         total = np.hypot(col("north_total_m")[sl] - col("ref_north_m")[sl], col("east_total_m")[sl]
                          - col("ref_east_m")[sl])
         if np.any(mode[sl] == 2):
@@ -169,8 +173,7 @@ def summarise(result: RunResult) -> dict[str, Any]:
     metrics["estimate_error_rms_north_m"] = _round(_rms(col("est_north_m")[est] - col("north_m")[est]))
     metrics["estimate_error_rms_east_m"] = _round(_rms(col("est_east_m")[est] - col("east_m")[est]))
     metrics["estimate_error_rms_heading_deg"] = _round(
-        None if _rms(ssa_array(col("est_heading_rad")[est] - col("heading_rad")[est])) is None
-        else math.degrees(_rms(ssa_array(col("est_heading_rad")[est] - col("heading_rad")[est]))))
+        _degrees(_rms(ssa_array(col("est_heading_rad")[est] - col("heading_rad")[est]))))
     omega_hat = col("omega_hat_rad_s")
     if np.any(np.isfinite(omega_hat)):
         tail = slice(int(0.8 * d.shape[0]), None)
@@ -234,8 +237,9 @@ def _setpoint_metrics(result: RunResult, d: np.ndarray, index: Any, k0: int) -> 
         start, end = bounds[i]
         sel = (t >= max(start, float(t[k0]))) & (t < end)
         old, new = points[i - 1], points[i]
-        step = (new.north_m - old.north_m, new.east_m - old.east_m) \
-            if None not in (new.north_m, old.north_m, new.east_m, old.east_m) else (0.0, 0.0)
+        if new.north_m is None or old.north_m is None or new.east_m is None or old.east_m is None:
+            continue  # a heading-only set-point on either side: no position move to overshoot
+        step = (new.north_m - old.north_m, new.east_m - old.east_m)
         length = math.hypot(*step)
         if not np.any(sel) or length == 0.0:
             continue
@@ -565,7 +569,8 @@ def expected_detection(fault: Fault, config: DaemonConfig) -> tuple[tuple[str, .
             median = hub.median_heading_limit_rad if heading else hub.median_limit_m
             if size <= median or n_refs < 2:
                 return (), None
-            codes = (f"sensor.{target}.isolated",) if n_refs >= 3 else (f"{route.sensor.kind.value}.disagree",)
+            codes: tuple[str, ...] = ((f"sensor.{target}.isolated",) if n_refs >= 3
+                                      else (f"{route.sensor.kind.value}.disagree",))
             return codes, hub.median_filter_s + hub.median_persist_s + 5.0
         if fault.end_s - fault.t_s < hub.reject_persist_s:
             return (), None  # each sample is rejected at once; too short to be marked (or to reset)
@@ -575,7 +580,7 @@ def expected_detection(fault: Fault, config: DaemonConfig) -> tuple[tuple[str, .
         if rate <= 0.0:
             return (), None
         if n_refs >= 3:
-            codes: tuple[str, ...] = (f"sensor.{target}.isolated", f"sensor.{target}.rejected")
+            codes = (f"sensor.{target}.isolated", f"sensor.{target}.rejected")
             limit = hub.median_heading_limit_rad if heading else hub.median_limit_m
         elif n_refs == 2:
             codes = (f"{route.sensor.kind.value}.disagree", f"sensor.{target}.rejected")

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from dpbase.schema import ConfigError
 from dpcontrol.runtime.config import load_config, parse_config
 from sim_plant.bench.lockstep import LockstepSimulation, RunResult, controller_mapping
 from sim_plant.bench.report import wrap_headings, write_plots, write_summary, write_timeseries_csv
@@ -42,6 +43,8 @@ def build_simulation(scenario: Scenario, controller_config: str | Path | None = 
         from dpbase.yamlfile import load_yaml  # noqa: PLC0415
 
         base = load_yaml(config.source_text) or {}
+        if not isinstance(base, dict):  # (load_config accepted the file, so its text is a mapping)
+            raise ConfigError("", "a mapping", base, file=str(controller_config))
         base.update(overrides)
         config = parse_config(base, file=str(controller_config), text=config.source_text)
     return LockstepSimulation(scenario, config)

@@ -46,7 +46,7 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -348,7 +348,7 @@ def level3(subject: Subject, case: FailureCase, level1_winds: Sequence[float], o
     settle = options.settle_s / math.sqrt(lam)
     limit_m = options.max_excursion_m / lam
     for step in range(options.iterations):
-        runs = []
+        runs: list[Run] = []
         for k, beta in enumerate(directions):
             wind = 0.5 * (lo[k] + hi[k])
             scenario = level3_scenario(subject, case, beta, wind, options)
@@ -395,7 +395,7 @@ def run_capability(subject: Subject, cases: list[FailureCase], options: Capabili
     directions = options.directions_deg
     common = {"current_mps": options.current_mps, "dynamic_allowance": options.dynamic_allowance,
               "max_wind_mps": options.max_wind_mps}
-    level1_cases = []
+    level1_cases: list[dict[str, Any]] = []
     for case in cases:
         if case.name == "worst":
             candidates = [level1(subject, c, directions, **common) for c in subject.single_failures()]
@@ -450,9 +450,11 @@ def write_polar_plot(document: Mapping[str, Any], path: Path) -> Path:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt  # noqa: PLC0415
+    from matplotlib.projections.polar import PolarAxes  # noqa: PLC0415
 
     directions = np.radians(np.asarray(document["directions_deg"], dtype=float))
-    fig, ax = plt.subplots(figsize=(7.2, 7.6), subplot_kw={"projection": "polar"})
+    fig, axes = plt.subplots(figsize=(7.2, 7.6), subplot_kw={"projection": "polar"})
+    ax = cast(PolarAxes, axes)  # what projection="polar" makes (subplots is typed as returning plain Axes)
     ax.set_theta_zero_location("N")
     ax.set_theta_direction(-1)
     top = 0.0
