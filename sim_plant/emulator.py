@@ -208,7 +208,7 @@ class PlantClock:
         return self.start_monotonic + t_s / self.speed
 
 
-class LoopStats:
+class WakeStats:
     """Timing of the real-time loop: lateness of each wake-up and the work done for it.
 
     Counts, maxima and sums cover the whole run; percentiles come from the most recent
@@ -351,7 +351,7 @@ class HilEmulator:
         self.operator: Operator | None = None
         self.outputs: HilOutputs | None = None
         self.ready = threading.Event()
-        self.stats = LoopStats(self.options.stats_capacity, self.options.deadline_tolerance_s)
+        self.stats = WakeStats(self.options.stats_capacity, self.options.deadline_tolerance_s)
         self._stop = threading.Event()
         self._stop_requested = False
         self._stop_reason = "duration"

@@ -43,7 +43,7 @@ from sim_plant.faults import THRUSTER_FAULTS, Fault
 from sim_plant.kernels import NO_DRIVE, plant_substep
 from sim_plant.scenario import Scenario
 from sim_plant.sensors import GnssSensor, GnssSpec, GyroSensor, SensorSample
-from sim_plant.thrusters import ThrusterCommand, ThrusterDrives, ThrusterFeedback
+from sim_plant.thrusters import DriveReport, ThrusterCommand, ThrusterDrives
 from sim_plant.vessel import DpVesselModel, ManoeuvringVesselModel, vessel_model
 
 _TOL_S = 1e-9
@@ -480,7 +480,7 @@ class Plant:
         s = math.sin(psi)
         return self.waves.peaks_for_velocity(t, psi, c * u - s * v, s * u + c * v)
 
-    def feedback(self) -> list[ThrusterFeedback]:
+    def feedback(self) -> list[DriveReport]:
         """Per-thruster feedback: delivered thrust, actual azimuth/rudder angle, ready."""
         return self.drives.feedback()
 

@@ -98,7 +98,7 @@ class ThrusterCommand:
 
 
 @dataclass(frozen=True, slots=True)
-class ThrusterFeedback:
+class DriveReport:
     """What a drive reports (``dp/<vessel>/thrusters/feedback``).
 
     Attributes
@@ -329,10 +329,10 @@ class ThrusterDrives:
         """
         return drives_force(self._const, self._state, self._codes, skip)
 
-    def feedback(self) -> list[ThrusterFeedback]:
+    def feedback(self) -> list[DriveReport]:
         """Per-drive feedback (delivered thrust, actual angle, ready)."""
         thrusts, angles, ready = self.feedback_values()
-        return [ThrusterFeedback(name, thrust, angle, ok)
+        return [DriveReport(name, thrust, angle, ok)
                 for name, thrust, angle, ok in zip(self.names, thrusts, angles, ready, strict=True)]
 
     def feedback_values(self) -> tuple[list[float], list[float], list[bool]]:
