@@ -38,7 +38,7 @@ from dpbase.frames import ssa
 from dpcontrol.arguments import add_zenoh_arguments
 from interfaces.zenoh.config import LOCAL_DAEMON_CONNECT, ZenohConfig, ZenohOpenError, tool_config
 from interfaces.zenoh.keys import ROLES, validate_vessel_id
-from interfaces.zenoh.node import AliveState, LatestSlot, ZenohNode
+from interfaces.zenoh.node import AliveState, LatestSlot, Received, TopicSubscriber, ZenohNode
 from interfaces.zenoh.schemas import parse_message
 from interfaces.zenoh.security import ZenohSecurity
 
@@ -619,7 +619,7 @@ class _Feed:
         # the liveliness of the peers that sent them (declared the other way round, a loaded host printed
         # "controller not seen" next to the controller's data).
         self.watchers = {role: node.watch_alive(role, on_change=lambda _present, _t: changed()) for role in ROLES}
-        self.subscribers = {
+        self.subscribers: dict[str, TopicSubscriber[LatestSlot[Received[Any]]]] = {
             topic: node.subscribe(topic, LatestSlot(on_put=changed), parse=functools.partial(parse_message, topic))
             for topic in MONITOR_TOPICS}
 

@@ -53,7 +53,7 @@ from interfaces.messages import LinkStatus, Measurement, RejectedInput
 from interfaces.recorder import Recorder, TopicSpec, default_topics
 from interfaces.systemd import SystemdNotifier
 from interfaces.zenoh import schemas
-from interfaces.zenoh.node import LatestSlot, Received, ZenohNode
+from interfaces.zenoh.node import Inbox, LatestSlot, Received, TopicSubscriber, ZenohNode
 from interfaces.zenoh.pki import days_left
 from interfaces.zenoh.schemas import SetpointRequest
 from interfaces.zenoh.security import EXPIRY_WARNING_DAYS, unprotected_endpoints
@@ -560,7 +560,8 @@ class Daemon:
                                f"thrusters; stop that one first")
         for topic in ("command", "estimate", "mmae", "control", "status"):
             self._publishers[topic] = node.publisher(topic)
-        self._setpoints = node.subscribe("setpoint")
+        # (an Inbox is the default store for setpoints: passed here so that its type is known)
+        self._setpoints: TopicSubscriber[Inbox[Received[Any]]] = node.subscribe("setpoint", Inbox())
         # thruster commands for this vessel from any other session: a second controller (not validated: any
         # sample there that is not ours is the fault)
         self._foreign_commands: LatestSlot[Any] = LatestSlot()
