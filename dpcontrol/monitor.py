@@ -536,14 +536,14 @@ def _alarms_panel(state: MonitorState, limit: int = 10) -> Panel:
         _row(table, Text(_text(_get(alarm, "code"), 64), style=style), Text(_text(severity, 10), style=style),
              Text("active" if active else "cleared", style=style), _age_text(age), clock,
              Text(_text(_get(alarm, "text"), 120), style=style))
-    active = sum(1 for a in ordered if _get(a, "active") is True)
+    active_count = sum(1 for a in ordered if _get(a, "active") is True)
     if not ordered:
         _row(table, Text("none", style="green"), "", "", "", "", "")
     elif len(ordered) > limit:
         _row(table, "…", "", "", "", "", f"{len(ordered) - limit} more")
     title = Text("Alarms", style="bold")
-    title.append(f" ({active} active", style="red" if active else "green")
-    title.append(f", {len(ordered) - active} cleared)", style="dim")
+    title.append(f" ({active_count} active", style="red" if active_count else "green")
+    title.append(f", {len(ordered) - active_count} cleared)", style="dim")
     return Panel(table, title=title, title_align="left")
 
 
