@@ -52,7 +52,7 @@ from dpcontrol.models.vessels import vessel_from_config
 from dpcontrol.setpoint import DEFAULT_TIMEOUT_S, check_request, send_request
 from interfaces.zenoh.config import LOCAL_DAEMON_CONNECT, ZenohConfig, ZenohOpenError, tool_config
 from interfaces.zenoh.keys import ROLES, validate_vessel_id
-from interfaces.zenoh.node import LatestSlot, ZenohNode
+from interfaces.zenoh.node import LatestSlot, Received, TopicSubscriber, ZenohNode
 from interfaces.zenoh.schemas import MODES, parse_message
 
 log = logging.getLogger(__name__)
@@ -176,8 +176,9 @@ class ConsoleFeed:
         self.vessel = vessel
         self.clock = clock
         self.wall_clock = wall_clock
-        self.subscribers = {topic: node.subscribe(topic, LatestSlot(), parse=functools.partial(parse_message, topic))
-                            for topic in CONSOLE_TOPICS}
+        self.subscribers: dict[str, TopicSubscriber[LatestSlot[Received[Any]]]] = {
+            topic: node.subscribe(topic, LatestSlot(), parse=functools.partial(parse_message, topic))
+            for topic in CONSOLE_TOPICS}
         self.watchers = {role: node.watch_alive(role) for role in ROLES}
         self._lock = threading.Lock()
         self._trail: collections.deque[tuple[float, float, float]] = collections.deque(maxlen=TRAIL_POINTS)

@@ -23,7 +23,7 @@ import logging
 import os
 import re
 import struct
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Generator, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -104,7 +104,7 @@ def log_files(path: str | os.PathLike[str]) -> list[Path]:
 
 
 def read_records(path: str | os.PathLike[str], topics: Iterable[str] | None = None, *,
-                 on_issue: IssueHandler | None = None) -> Iterator[Record]:
+                 on_issue: IssueHandler | None = None) -> Generator[Record, None, None]:
     """Iterate the records of a recording file or directory, in recording order.
 
     Parameters
@@ -320,9 +320,9 @@ def export_csv(log: str | os.PathLike[str], out_dir: str | os.PathLike[str], top
             writers[name] = writer
         for _, record in zip(range(count), records, strict=False):
             for name, with_topic in _targets(record.topic, names):
-                writer = writers.get(name)
-                if writer is not None:
-                    writer.writerow({k: _cell(v) for k, v in _row(record, with_topic).items()})
+                target = writers.get(name)
+                if target is not None:
+                    target.writerow({k: _cell(v) for k, v in _row(record, with_topic).items()})
     finally:
         records.close()
         for handle in handles.values():

@@ -38,7 +38,7 @@ from dpbase.frames import ssa
 from dpcontrol.arguments import add_zenoh_arguments
 from interfaces.zenoh.config import LOCAL_DAEMON_CONNECT, ZenohConfig, ZenohOpenError, tool_config
 from interfaces.zenoh.keys import ROLES, validate_vessel_id
-from interfaces.zenoh.node import AliveState, LatestSlot, ZenohNode
+from interfaces.zenoh.node import AliveState, LatestSlot, Received, TopicSubscriber, ZenohNode
 from interfaces.zenoh.schemas import parse_message
 from interfaces.zenoh.security import ZenohSecurity
 
@@ -536,14 +536,14 @@ def _alarms_panel(state: MonitorState, limit: int = 10) -> Panel:
         _row(table, Text(_text(_get(alarm, "code"), 64), style=style), Text(_text(severity, 10), style=style),
              Text("active" if active else "cleared", style=style), _age_text(age), clock,
              Text(_text(_get(alarm, "text"), 120), style=style))
-    active = sum(1 for a in ordered if _get(a, "active") is True)
+    active_count = sum(1 for a in ordered if _get(a, "active") is True)
     if not ordered:
         _row(table, Text("none", style="green"), "", "", "", "", "")
     elif len(ordered) > limit:
         _row(table, "…", "", "", "", "", f"{len(ordered) - limit} more")
     title = Text("Alarms", style="bold")
-    title.append(f" ({active} active", style="red" if active else "green")
-    title.append(f", {len(ordered) - active} cleared)", style="dim")
+    title.append(f" ({active_count} active", style="red" if active_count else "green")
+    title.append(f", {len(ordered) - active_count} cleared)", style="dim")
     return Panel(table, title=title, title_align="left")
 
 
@@ -619,7 +619,7 @@ class _Feed:
         # the liveliness of the peers that sent them (declared the other way round, a loaded host printed
         # "controller not seen" next to the controller's data).
         self.watchers = {role: node.watch_alive(role, on_change=lambda _present, _t: changed()) for role in ROLES}
-        self.subscribers = {
+        self.subscribers: dict[str, TopicSubscriber[LatestSlot[Received[Any]]]] = {
             topic: node.subscribe(topic, LatestSlot(on_put=changed), parse=functools.partial(parse_message, topic))
             for topic in MONITOR_TOPICS}
 

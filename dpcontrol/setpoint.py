@@ -30,7 +30,7 @@ from dpcontrol.arguments import add_zenoh_arguments, finite_number, positive_num
 from interfaces.messages import Rejected
 from interfaces.zenoh.config import LOCAL_DAEMON_CONNECT, ZenohConfig, ZenohOpenError, tool_config
 from interfaces.zenoh.keys import validate_vessel_id
-from interfaces.zenoh.node import LatestSlot, ZenohNode
+from interfaces.zenoh.node import LatestSlot, Received, ZenohNode
 from interfaces.zenoh.schemas import MODES, parse_message, parse_setpoint, setpoint_payload
 from interfaces.zenoh.security import ZenohSecurity
 
@@ -149,8 +149,8 @@ def send_request(node: ZenohNode, fields: Mapping[str, Any], *, timeout_s: float
     arrived = threading.Event()
     keys = node.keys
     controller = node.watch_alive("controller", on_change=lambda _present, _t: arrived.set())
-    statuses = node.subscribe("status", LatestSlot(on_put=arrived.set),
-                              parse=lambda payload: parse_message("status", payload))
+    status_slot: LatestSlot[Received[Any]] = LatestSlot(on_put=arrived.set)
+    statuses = node.subscribe("status", status_slot, parse=lambda payload: parse_message("status", payload))
     publisher = node.publisher("setpoint")
     if not controller.wait_for(True, max(0.0, deadline - clock())):
         return Answer("no_controller", f"no controller alive for vessel '{keys.vessel}' ({keys.alive('controller')}) "

@@ -339,10 +339,10 @@ def _parse_estimator(section: Section, vessel: VesselData, rate_hz: float,
         omegas = (Section.of(options, section.path).number(name, 0.8),)
     else:
         omegas = ()
-    key = {"mmae": "omegas_rad_s", "kf": "omega_rad_s", "rpem": "omega0_rad_s", "pem": "omega0_rad_s"}.get(kind)
+    omega_key = {"mmae": "omegas_rad_s", "kf": "omega_rad_s", "rpem": "omega0_rad_s", "pem": "omega0_rad_s"}.get(kind)
     for i, omega in enumerate(omegas):
         if not 0.05 <= omega <= 5.0:
-            where = f"{section.path}.{key}" + (f"[{i}]" if kind == "mmae" else "")
+            where = f"{section.path}.{omega_key}" + (f"[{i}]" if kind == "mmae" else "")
             raise ConfigError(where, "a wave peak frequency in [0.05, 5] rad/s", omega)
     zeta = options.get("zeta", 0.1)
     extra = {k: v for k, v in options.items() if k not in ("omegas_rad_s", "omega_rad_s", "omega0_rad_s", "zeta")}

@@ -53,7 +53,7 @@ from interfaces.messages import LinkStatus, Measurement, RejectedInput
 from interfaces.recorder import Recorder, TopicSpec, default_topics
 from interfaces.systemd import SystemdNotifier
 from interfaces.zenoh import schemas
-from interfaces.zenoh.node import LatestSlot, Received, ZenohNode
+from interfaces.zenoh.node import Inbox, LatestSlot, Received, TopicSubscriber, ZenohNode
 from interfaces.zenoh.pki import days_left
 from interfaces.zenoh.schemas import SetpointRequest
 from interfaces.zenoh.security import EXPIRY_WARNING_DAYS, unprotected_endpoints
@@ -175,9 +175,9 @@ class InputPump:
 
             reader = SerialReader(s["port"], source=name, clock=self.clock, baudrate=s["baud"],
                                   max_sentence_chars=s["max_sentence_chars"],
-                                  on_line=lambda line, n=name: self._nmea_line(n, line),
-                                  on_link=lambda status, n=name: self._queue.append(
-                                      LinkStatus(status.t_s, n, status.connected, status.detail)))
+                                  on_line=lambda line: self._nmea_line(name, line),
+                                  on_link=lambda status: self._queue.append(
+                                      LinkStatus(status.t_s, name, status.connected, status.detail)))
             return reader.start()
         if transport.protocol == "nmea2000":
             from interfaces.nmea2000.codec import N2kDecoder  # noqa: PLC0415
@@ -190,11 +190,11 @@ class InputPump:
             self._n2k_decoders[name] = decoder  # who claimed which address (60928), for routes by NAME
             if s["interface"] in GATEWAY_KINDS:
                 return N2kGatewayReader(GatewayConfig(s["interface"], channel, dict(s.get("options") or {})),
-                                        lambda event, n=name: self._n2k_event(n, event), clock=self.clock,
+                                        lambda event: self._n2k_event(name, event), clock=self.clock,
                                         decoder=decoder, deliver_raw=self.recorder is not None).start()
             bus = CanBusConfig(s["interface"], channel or "can0", dict(s.get("options") or {}))
             by_name = any(route.source_name is not None for route in self.router.routes_of(name))
-            return N2kCanReader(bus, lambda event, n=name: self._n2k_event(n, event), clock=self.clock,
+            return N2kCanReader(bus, lambda event: self._n2k_event(name, event), clock=self.clock,
                                 decoder=decoder, deliver_raw=self.recorder is not None,
                                 request_address_claims=by_name).start()
         from interfaces.mavlink.codec import parse_signing_key  # noqa: PLC0415
@@ -204,7 +204,7 @@ class InputPump:
         if match is None:
             raise ValueError(f"mavlink url {s['url']!r}: only udpin:HOST:PORT is supported")
         key = parse_signing_key(s["signing_key_hex"]) if s.get("signing_key_hex") else None
-        return MavlinkUdpReader(lambda event, n=name: self._mav_event(n, event),
+        return MavlinkUdpReader(lambda event: self._mav_event(name, event),
                                 bind=(match.group(1), int(match.group(2))), clock=self.clock, signing_key=key,
                                 heartbeat_timeout_s=s["heartbeat_timeout_s"], deliver_raw=self.recorder is not None,
                                 namer=lambda sys_id, comp, msg: f"mav:{sys_id}/{comp}/{msg}").start()
@@ -560,7 +560,8 @@ class Daemon:
                                f"thrusters; stop that one first")
         for topic in ("command", "estimate", "mmae", "control", "status"):
             self._publishers[topic] = node.publisher(topic)
-        self._setpoints = node.subscribe("setpoint")
+        # (an Inbox is the default store for setpoints: passed here so that its type is known)
+        self._setpoints: TopicSubscriber[Inbox[Received[Any]]] = node.subscribe("setpoint", Inbox())
         # thruster commands for this vessel from any other session: a second controller (not validated: any
         # sample there that is not ours is the fault)
         self._foreign_commands: LatestSlot[Any] = LatestSlot()
@@ -910,7 +911,8 @@ class Daemon:
             identity = links.get(item.source_zid) if item.source_zid is not None else None
             roles = security.roles_of(identity)
             if identity is None:
-                consoles = sorted({n for n in links.values() if "console" in security.roles_of(n)})
+                # (a plaintext link has no name, so no role: roles_of(None) is empty)
+                consoles = sorted({n for n in links.values() if n is not None and "console" in security.roles_of(n)})
                 identity = consoles[0] if len(consoles) == 1 else f"one of {', '.join(consoles) or 'none'}"
                 roles = ("console",)  # (the access control let only console identities put it)
             role = "console" if "console" in roles else "/".join(roles) or "none"

@@ -49,6 +49,7 @@ import math
 from collections.abc import Iterable, Sequence
 from dataclasses import InitVar, dataclass, field
 from enum import Enum
+from typing import TypedDict
 
 from dpbase.frames import ssa
 from dpbase.geodesy import LocalFrame, lever_arm_ned
@@ -201,6 +202,20 @@ def _healthy(tracks: list[_SensorTrack], t_s: float) -> list[_SensorTrack]:
             t_s - t.last_accepted_t_s <= t.stale_s]
 
 
+class SensorStatus(TypedDict):
+    """One reference's line of :meth:`SensorHub.sensor_status` (the status message's sensor health)."""
+
+    name: str
+    kind: str  # SensorKind value
+    state: str  # SensorState value
+    age_s: float | None  # since its last sample [s] (None: never heard)
+    weight: float  # share in the fused value [-]
+    sigma: float  # current 1-σ [m] or [rad]
+    samples: int
+    rejected: int
+    detail: str
+
+
 @dataclass
 class HubOutput:
     """What the hub gives the estimator for one control step.
@@ -327,8 +342,8 @@ class SensorHub:
         if dt != self._decay_dt:  # the fade of the bumpless offsets over this period (the same every cycle)
             self._decay_dt = dt
             self._decay = math.exp(-dt / self.config.switch_blend_s) if dt > 0.0 else 1.0
-        for track in self._all:
-            track.fresh = False
+        for each in self._all:
+            each.fresh = False
         self._base_variance = predicted_variance
         if predicted_variance is not None and \
                 (self._position_lost_since is not None or self._heading_lost_since is not None):
@@ -416,8 +431,9 @@ class SensorHub:
 
     def _nominal_sigma(self, track: _SensorTrack) -> float:
         """1-σ the sensor claims: recent GST statistics, else the configured noise."""
-        gst = track.gst_sigma  # (gst_t_s is set with it)
-        if gst is not None and track.last_t_s is not None and track.last_t_s - track.gst_t_s <= track.gst_valid_s:
+        gst, gst_t_s = track.gst_sigma, track.gst_t_s  # (set together: both None or neither)
+        if gst is not None and gst_t_s is not None and track.last_t_s is not None and \
+                track.last_t_s - gst_t_s <= track.gst_valid_s:
             return gst
         return track.config.sigma
 
@@ -677,16 +693,19 @@ class SensorHub:
         single reference has nothing to compare with, so it gets no alarm — its weight still follows
         its measured variance.
         """
-        if state is not SensorState.OK or not self._variance_settled(track):
+        if state is not SensorState.OK:
             return False
-        others = [t.residual_variance for t in track.peers if t.state is SensorState.OK and self._variance_settled(t)]
+        variance = self._settled_variance(track)
+        if variance is None:
+            return False
+        others = [v for t in track.peers if t.state is SensorState.OK and (v := self._settled_variance(t)) is not None]
         if not others:
             return False
         floor = max(track.config.sigma ** 2, min(others))
         # hysteresis: raised above factor², cleared below (2/3 · factor)² (4× for the default 3), so a
         # variance estimate hovering at the limit does not toggle the alarm
         factor = self.config.variance_alarm_factor * (2.0 / 3.0 if track.noisy else 1.0)
-        return track.residual_variance > factor * factor * floor
+        return variance > factor * factor * floor
 
     def _readmit(self, track: _SensorTrack, t_s: float) -> None:
         """A reference back to OK is fused only after ``readmit_s`` of good samples, when others of its
@@ -696,10 +715,14 @@ class SensorHub:
         others = any(t is not track for t in in_use)
         track.usable_from_t_s = t_s + self.config.readmit_s if others else -math.inf
 
-    def _variance_settled(self, track: _SensorTrack) -> bool:
-        """The measured variance averages at least one ``variance_time_constant_s`` of samples."""
-        return track.residual_variance is not None and \
-            track.variance_samples * track.nominal_period_s >= self.config.variance_time_constant_s
+    def _settled_variance(self, track: _SensorTrack) -> float | None:
+        """The measured variance once it averages at least one ``variance_time_constant_s`` of samples, else
+        None."""
+        variance = track.residual_variance
+        if variance is not None and \
+                track.variance_samples * track.nominal_period_s >= self.config.variance_time_constant_s:
+            return variance
+        return None
 
     def _median_one(self, tracks: list[_SensorTrack], t_s: float, *, heading: bool) -> None:
         """Median test (≥ 3 references) or disagreement alarm (2); with fewer it only clears that alarm
@@ -766,7 +789,7 @@ class SensorHub:
         filtered = [t for t in tracks if t.filtered is not None]
         if not filtered:
             return None
-        values = [t.filtered for t in filtered]
+        values = [t.filtered for t in tracks if t.filtered is not None]  # (parallel to ``filtered``)
         weights = self._weights(filtered)
         total = sum(weights)
         if heading:
@@ -891,9 +914,9 @@ class SensorHub:
         out.heading_lost_s = 0.0 if self._heading_lost_since is None else t_s - self._heading_lost_since
 
     # ------------------------------------------------------------------ reporting
-    def sensor_status(self, t_s: float) -> list[dict[str, object]]:
+    def sensor_status(self, t_s: float) -> list[SensorStatus]:
         """Per-sensor health for ``dp/<vessel>/status``."""
-        rows = []
+        rows: list[SensorStatus] = []
         for track in self._all:
             age = None if track.last_t_s is None else round(t_s - track.last_t_s, 3)
             rows.append({"name": track.name, "kind": track.config.kind.value, "state": track.state.value,

@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypedDict
 
 import numpy as np
 
@@ -190,6 +190,14 @@ def _advance(t_s: float, dt_s: float, commanded_n: np.ndarray, drive: np.ndarray
         if event != 0:
             flagged += 1
     return flagged
+
+
+class ThrusterStatus(TypedDict):
+    """One thruster's line of :meth:`ThrusterMonitor.status` (the status message's availability)."""
+
+    name: str
+    available: bool
+    detail: str  # the fault, "" when none
 
 
 @dataclass(frozen=True)
@@ -419,7 +427,7 @@ class ThrusterMonitor:
         azimuth_rad[:] = self._fb_angle
         return True
 
-    def status(self) -> list[dict[str, object]]:
+    def status(self) -> list[ThrusterStatus]:
         """Per-thruster availability for the status message."""
         return [{"name": h.spec.name, "available": bool(self.available[i]), "detail": h.detail}
                 for i, h in enumerate(self._health)]

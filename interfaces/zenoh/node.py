@@ -7,7 +7,7 @@ plant emulator and the monitor each use one::
     node = ZenohNode(ZenohConfig(listen=("tcp/192.168.10.2:7447",)), "supply")
     command = node.publisher("command")                 # declare once ...
     command.put(command_payload(t_s=t, seq=command.next_seq(), ...))   # ... put bytes each cycle
-    setpoints = node.subscribe("setpoint")              # validated SetpointRequest in an Inbox
+    setpoints = node.subscribe("setpoint", Inbox())     # validated SetpointRequest in an Inbox
     for item in setpoints.sink.drain(): ...             # Received(rx_t_s, key, message)
     node.serve_config(config_json_bytes)                # dp/<vessel>/config queryable
     node.declare_alive("controller")                    # liveliness token
@@ -32,7 +32,7 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Generic, TypeVar
+from typing import Any, Generic, TypeVar, overload
 
 import zenoh
 
@@ -170,14 +170,18 @@ class SubscriberStats:
     last_rejection: Rejected | None
 
 
-class TopicSubscriber(Generic[T]):
+# The kind of store a subscriber fills: typed, so that ``subscriber.sink.latest()`` / ``.drain()`` check
+SinkT = TypeVar("SinkT", bound=_Sink[Received[Any]])
+
+
+class TopicSubscriber(Generic[SinkT]):
     """A subscriber that validates each sample and stores :class:`Received` messages in a sink.
 
     Rejections are counted and the last 16 kept (:attr:`recent_rejections`) for alarms and the
     black-box recorder; nothing propagates into zenoh's thread.
     """
 
-    def __init__(self, session: zenoh.Session, key: str, parse: Callable[[bytes], T | Rejected], sink: _Sink[Any],
+    def __init__(self, session: zenoh.Session, key: str, parse: Callable[[bytes], Any], sink: SinkT,
                  clock: Clock, *, remote_only: bool = False) -> None:
         self.key = key
         self.sink = sink
@@ -554,7 +558,15 @@ class ZenohNode:
         return self._keep(TopicPublisher(self.session, key, priority=priority, congestion_control=congestion,
                                          express=express, attach_source=topic == "setpoint"))
 
-    def subscribe(self, topic: str, sink: _Sink[Any] | None = None, *,
+    @overload
+    def subscribe(self, topic: str, sink: SinkT, *, parse: Callable[[bytes], Any] | None = None,
+                  remote_only: bool = False) -> TopicSubscriber[SinkT]: ...
+
+    @overload
+    def subscribe(self, topic: str, sink: None = None, *, parse: Callable[[bytes], Any] | None = None,
+                  remote_only: bool = False) -> TopicSubscriber[_Sink[Received[Any]]]: ...
+
+    def subscribe(self, topic: str, sink: _Sink[Received[Any]] | None = None, *,
                   parse: Callable[[bytes], Any] | None = None, remote_only: bool = False) -> TopicSubscriber[Any]:
         """Subscribe to ``topic`` with validation.
 
@@ -563,7 +575,9 @@ class ZenohNode:
         topic : str
         sink : LatestSlot or Inbox, optional
             Where validated :class:`Received` messages go; default :class:`Inbox` for setpoints
-            (every request counts), :class:`LatestSlot` otherwise.
+            (every request counts), :class:`LatestSlot` otherwise. Pass one to have its own methods
+            (``latest``, ``drain``, ...) type-checked on ``subscriber.sink``: the default is typed as
+            any sink, the topic deciding which.
         parse : callable, optional
             ``bytes -> message | Rejected``; default: the typed parser for ``command``,
             ``feedback``, ``setpoint`` (e.g. pass ``functools.partial(parse_feedback,

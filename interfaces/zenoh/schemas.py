@@ -875,7 +875,7 @@ _FORCE = ("x_n", "y_n", "n_nm")
 
 
 def command_payload(*, t_s: float, seq: int, mode: str, names: Sequence[str], thrust_n: Any, azimuth_rad: Any,
-                    enabled: Sequence[bool] | None = None) -> bytes:
+                    enabled: Sequence[bool] | np.ndarray | None = None) -> bytes:
     """Encode a thruster command (daemon → drives).
 
     Parameters
