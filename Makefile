@@ -34,10 +34,12 @@ demo: $(STAMP)
 test: $(STAMP)
 	sh .ci/install-test-browser
 	$(BIN)/ruff check .
+	$(BIN)/python -m mypy
 	$(BIN)/python -m pytest -q
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
+	$(BIN)/python -m mypy
 
 bench: $(STAMP)
 	$(BIN)/dpcontrol bench

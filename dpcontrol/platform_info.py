@@ -61,7 +61,7 @@ def machine_info() -> dict[str, Any]:
     return {"cpu": _cpu_model(), "logical_cpus": os.cpu_count(), "usable_cpus": usable, "load_average_1min": load,
             "platform": platform.platform(), "python": platform.python_version(),
             "libraries": {name: _version(name) for name in _LIBRARIES},
-            "measured_at": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")}
+            "measured_at": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
 
 
 def available_memory_bytes() -> int | None:

@@ -373,8 +373,9 @@ class DpController:
         if self._estimator_ready:
             predicted_n, variance_n = self.estimator.predicted_measurement()
             # as Python floats: the hub's scalar arithmetic on numpy scalars costs several times more (same values)
-            predicted = predicted_n.tolist() if type(predicted_n) is np.ndarray else predicted_n
-            variance = variance_n.tolist() if type(variance_n) is np.ndarray else variance_n
+            # (an estimator returning an ndarray subclass or a sequence is converted the same way, more slowly)
+            predicted = predicted_n.tolist() if type(predicted_n) is np.ndarray else np.asarray(predicted_n).tolist()
+            variance = variance_n.tolist() if type(variance_n) is np.ndarray else np.asarray(variance_n).tolist()
             estimate = out.estimate
             if estimate is not None:
                 # body_to_ned's arithmetic on Python floats, without building an array (the hub reads two)
