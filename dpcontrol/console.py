@@ -31,7 +31,6 @@ import asyncio
 import collections
 import contextlib
 import functools
-import ipaddress
 import json
 import logging
 import math
@@ -54,6 +53,7 @@ from interfaces.zenoh.config import LOCAL_DAEMON_CONNECT, ZenohConfig, ZenohOpen
 from interfaces.zenoh.keys import ROLES, validate_vessel_id
 from interfaces.zenoh.node import LatestSlot, Received, TopicSubscriber, ZenohNode
 from interfaces.zenoh.schemas import MODES, parse_message
+from interfaces.zenoh.security import is_loopback_host
 
 log = logging.getLogger(__name__)
 
@@ -93,16 +93,6 @@ def parse_http_address(text: str) -> tuple[str, int]:
     if not 0 < port < 65536:
         raise ValueError(f"--http {text!r}: the port must be within 1-65535")
     return host, port
-
-
-def is_loopback(host: str) -> bool:
-    """Whether ``host`` names this machine only (``localhost``, 127.0.0.0/8, ::1)."""
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False
 
 
 def vessel_geometry(config: Mapping[str, Any] | None) -> dict[str, Any] | None:
@@ -416,7 +406,7 @@ def run_console(vessel: str, session_config: ZenohConfig, *, http: str = DEFAULT
     except ImportError as error:  # (a dependency of the project; an incomplete install)
         print(f"dpcontrol console: the web server is not installed ({error})", file=sys.stderr)
         return 1
-    if not is_loopback(host):
+    if not is_loopback_host(host):
         log.warning("console served on %s, beyond this machine: it has no login of its own; put it behind an "
                     "authenticating proxy or reach it through an SSH tunnel (docs/console.md)%s", host,
                     "; operator actions are ENABLED" if allow_actions else "")

@@ -262,6 +262,16 @@ def _optional_string(sec: Section, key: str) -> str | None:
     return None if sec.raw(key, None) is None else sec.string(key)
 
 
+def is_loopback_host(host: str) -> bool:
+    """True when ``host`` names this machine only (``localhost``, ``127.0.0.0/8``, ``::1``)."""
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
 def is_loopback(endpoint: str) -> bool:
     """True when the endpoint's host is a loopback address (``127.0.0.0/8``, ``::1``, ``localhost``) or a
     local socket."""
@@ -269,13 +279,7 @@ def is_loopback(endpoint: str) -> bool:
     if proto == "unixsock-stream":
         return True
     address = address.split("?", 1)[0].split("#", 1)[0]
-    host = address.rpartition(":")[0].strip("[]")
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False
+    return is_loopback_host(address.rpartition(":")[0].strip("[]"))
 
 
 def unprotected_endpoints(listen: tuple[str, ...], connect: tuple[str, ...],

@@ -11,7 +11,6 @@ import pytest
 
 from dpcontrol.console import (
     ConsoleFeed,
-    is_loopback,
     parse_http_address,
     request_fields_from_json,
     vessel_geometry,
@@ -21,6 +20,7 @@ from interfaces.zenoh import schemas as sc
 from interfaces.zenoh.config import ZenohConfig
 from interfaces.zenoh.loopback import open_listener
 from interfaces.zenoh.node import ZenohNode
+from interfaces.zenoh.security import is_loopback_host
 
 
 def test_request_fields_take_only_the_setpoint_options_and_finite_numbers() -> None:
@@ -48,8 +48,10 @@ def test_http_address_and_loopback() -> None:
     for bad in ("8470", ":8470", "host:port", "127.0.0.1:0x", "127.0.0.1:70000"):
         with pytest.raises(ValueError, match="--http"):
             parse_http_address(bad)
-    assert is_loopback("127.0.0.1") and is_loopback("localhost") and is_loopback("::1") and is_loopback("127.1.2.3")
-    assert not is_loopback("0.0.0.0") and not is_loopback("192.168.1.10") and not is_loopback("bridge-pc")
+    assert is_loopback_host("127.0.0.1") and is_loopback_host("localhost") and is_loopback_host("::1")
+    assert is_loopback_host("127.1.2.3")
+    assert not is_loopback_host("0.0.0.0") and not is_loopback_host("192.168.1.10")
+    assert not is_loopback_host("bridge-pc")
 
 
 def test_vessel_geometry_from_the_daemons_configuration() -> None:
