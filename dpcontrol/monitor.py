@@ -675,7 +675,7 @@ class _Feed:
                 live.update(render(self.snapshot()), refresh=True)
 
 
-def run_monitor(vessel: str, connect: Sequence[str] = DEFAULT_CONNECT, *, listen: Sequence[str] = (),
+def run_monitor(vessel: str, connect: Sequence[str] = DEFAULT_CONNECT, *, listen: Sequence[str] = (),  # noqa: PLR0913 - the command line's options, keyword-only
                 once: bool = False, wait_s: float = 3.0, duration_s: float | None = None,
                 refresh_hz: float = 10.0, stale_after_s: float = 2.0, console: Console | None = None,
                 clock: Callable[[], float] = time.monotonic, security: ZenohSecurity | None = None) -> int:

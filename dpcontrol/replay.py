@@ -48,7 +48,7 @@ class RawDecoders:
         return out
 
 
-def replay(log: Path, config_path: Path, out_dir: Path | None = None, *, plots: bool = True) -> dict[str, Any]:
+def replay(log: Path, config_path: Path, out_dir: Path | None = None, *, plots: bool = True) -> dict[str, Any]:  # noqa: C901, PLR0915 - read, step and compare in one pass over the recording; to split with the daemon's input stage
     """Replay ``log`` with the configuration ``config_path``; returns the comparison report.
 
     Raises

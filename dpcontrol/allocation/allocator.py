@@ -195,7 +195,7 @@ class ThrustAllocator:
     of what remains.
     """
 
-    def __init__(self, thrusters: Sequence[ThrusterSpec], sample_time_s: float, *,
+    def __init__(self, thrusters: Sequence[ThrusterSpec], sample_time_s: float, *,  # noqa: PLR0915 - every allocation constant is validated and precomputed here once (geometry, limits, QP matrices), off the per-step path
                  thrust_weights: Sequence[float] | None = None, rudder_lift_weight: float = 0.5,
                  slack_weight: float | Sequence[float] = 1e4, slack_penalty: float | Sequence[float] = 1e4,
                  polygon_sides: int = 24) -> None:

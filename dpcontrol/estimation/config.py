@@ -218,7 +218,7 @@ class WaveFilterConfig:
     pem_zeta_max: float = 0.5
     pem_wf_std_floor: float = 1.0
 
-    def __post_init__(self) -> None:
+    def __post_init__(self) -> None:  # noqa: C901, PLR0912 - one check per wave-filter setting, each with its own message
         M = np.array(self.mass_matrix, dtype=float)
         D = np.array(self.damping_matrix, dtype=float)
         if M.shape != (3, 3) or not np.all(np.isfinite(M)):

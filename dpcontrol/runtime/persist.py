@@ -268,7 +268,7 @@ class StateStore:
         self.last_result = result
         return result
 
-    def _check(self, now_wall_s: float) -> LoadResult:
+    def _check(self, now_wall_s: float) -> LoadResult:  # noqa: PLR0911 - one return per reason a saved state is refused
         path = self._path
         try:
             data = path.read_bytes()

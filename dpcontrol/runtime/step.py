@@ -352,7 +352,7 @@ class DpController:
         return self.out.hub.y_n if self.out.hub is not None else self._zero3  # type: ignore[return-value]
 
     # ------------------------------------------------------------------ the step
-    def step(self, t_s: float, measurements: Sequence[Measurement] = (),
+    def step(self, t_s: float, measurements: Sequence[Measurement] = (),  # noqa: C901, PLR0912, PLR0915 - the control cycle in its order; to become a pipeline of typed stages (docs/design.md §7)
              feedback: Sequence[ThrusterFeedback] = (), requests: Sequence[SetpointRequest] = ()) -> StepOutput:
         """One control period at time ``t_s`` [s] (see the module docstring)."""
         clock = self._stage_clock
@@ -558,7 +558,7 @@ class DpController:
         out.tau_achieved_b[:] = result.tau_achieved_b
         out.shortfall_b[:] = result.shortfall_b
 
-    def _update_mode(self, t_s: float, hub: HubOutput) -> None:
+    def _update_mode(self, t_s: float, hub: HubOutput) -> None:  # noqa: C901, PLR0912 - the mode and fall-back rules of docs/fault-handling.md in one place
         out = self.out
         fb = self.config.fallback
         wanted = self._requested_mode

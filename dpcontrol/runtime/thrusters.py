@@ -83,7 +83,7 @@ _mismatch_limit_compiled = kernel(f8(f8, f8, f8, f8))(mismatch_limit_n)  # the s
 
 
 @kernel(i8(f8, f8, f8_1d, f8_2d, f8_2d, b1_1d, b1_1d, f8, f8, f8, f8, f8, b1_1d, i8_1d))
-def _advance(t_s: float, dt_s: float, commanded_n: np.ndarray, drive: np.ndarray, feedback: np.ndarray,  # noqa: PLR0917 - a kernel: numba's calls are positional
+def _advance(t_s: float, dt_s: float, commanded_n: np.ndarray, drive: np.ndarray, feedback: np.ndarray,  # noqa: PLR0913, PLR0917 - a kernel: its state is arrays, numba's calls are positional
              not_ready: np.ndarray, failed: np.ndarray, timeout_s: float, fraction: float, floor_fraction: float,
              persist_s: float, readmit_s: float, available: np.ndarray, events: np.ndarray) -> int:
     """One :meth:`ThrusterMonitor.update` of every drive's numbers (module docstring); the alarms are the caller's.

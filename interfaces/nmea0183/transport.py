@@ -114,7 +114,7 @@ class SerialReader:
     ``counters["callback_errors"]`` and logged, never propagated.
     """
 
-    def __init__(
+    def __init__(  # noqa: PLR0913 - the serial port's settings, keyword-only
         self,
         port: str,
         *,

@@ -760,7 +760,7 @@ def parse_feedback(payload: object, *, thruster_names: Collection[str] | None = 
     return FeedbackMessage(result["t_s"], result["seq"], tuple(entries))
 
 
-def parse_setpoint(payload: object, *, limits: SetpointLimits = SetpointLimits()) -> SetpointRequest | Rejected:
+def parse_setpoint(payload: object, *, limits: SetpointLimits = SetpointLimits()) -> SetpointRequest | Rejected:  # noqa: PLR0911 - one return per refusal reason
     """Validate an operator setpoint request.
 
     Accepted forms (all with the envelope ``schema``/``t_s``/``seq``):
@@ -988,7 +988,7 @@ def mmae_payload(*, t_s: float, seq: int, omegas_rad_s: Any, weights: Any, omega
                     "sea_state": sea_states.classify(omega_hat)})
 
 
-def control_payload(*, t_s: float, seq: int, controller: str, tau_b: Any, setpoint_n: Any = None,
+def control_payload(*, t_s: float, seq: int, controller: str, tau_b: Any, setpoint_n: Any = None,  # noqa: PLR0913 - one keyword-only argument per field of the payload
                     reference_n: Any = None, reference_nu_b: Any = None, tau_achieved_b: Any = None,
                     shortfall_b: Any = None, mrac_mass: Any = None, mrac_damping: Any = None) -> bytes:
     """Encode the controller state.
@@ -1105,7 +1105,7 @@ class DrivesSeen:
     feedback_age_s: float | None
 
 
-def status_payload(*, t_s: float, seq: int, mode: str, sensors: Sequence[SensorHealth] = (),
+def status_payload(*, t_s: float, seq: int, mode: str, sensors: Sequence[SensorHealth] = (),  # noqa: PLR0913 - one keyword-only argument per field of the payload
                    alarms: Sequence[Alarm] = (), cycle: CycleTiming | None = None,
                    thrusters: Sequence[ThrusterAvailability] = (), request: RequestOutcome | None = None,
                    consequence: WorstCaseCheck | None = None, requests: Sequence[RequestOutcome] = (),
@@ -1154,7 +1154,7 @@ def _request_outcome(outcome: RequestOutcome) -> dict[str, Any]:
             "detail": outcome.detail[:256], **by}
 
 
-def setpoint_payload(*, t_s: float, seq: int, mode: str | None = None, north_m: float | None = None,
+def setpoint_payload(*, t_s: float, seq: int, mode: str | None = None, north_m: float | None = None,  # noqa: PLR0913 - one keyword-only argument per field of the payload
                      east_m: float | None = None, heading_deg: float | None = None, heading_rad: float | None = None,
                      move_north_m: float | None = None, move_east_m: float | None = None,
                      move_surge_m: float | None = None, move_sway_m: float | None = None,

@@ -456,7 +456,7 @@ def _read_csv(path: Path) -> dict[str, Any]:
     return columns
 
 
-def write_report(run_dir: Path, wiring: dict[str, Any], *, daemon_code: int | None,
+def write_report(run_dir: Path, wiring: dict[str, Any], *, daemon_code: int | None,  # noqa: PLR0915 - the report's sections one after another
                  plant_code: int | None, host_steal: dict[str, float] | None = None,
                  interrupted_by: str | None = None) -> Path:
     """Plots and ``summary.json`` of a demo run (see the module docstring); ``host_steal`` is

@@ -692,7 +692,7 @@ class LockstepSimulation:
         self.omegas = tuple(wave_filter.omegas_rad_s) if wave_filter is not None and \
             self.config.estimator.kind == "mmae" else ()
 
-    def run(self, progress: Callable[[float, float], None] | None = None, duration_s: float | None = None, *,
+    def run(self, progress: Callable[[float, float], None] | None = None, duration_s: float | None = None, *,  # noqa: PLR0915 - the simulation loop is one function so that its locals stay local (the hot path)
             observer: Callable[[float, StepOutput], None] | None = None, timeseries: bool = True,
             interruptible: bool = False) -> RunResult:
         """Run to the scenario's end (or ``duration_s``); returns the preallocated time series.

@@ -350,7 +350,7 @@ def mark_events(fig: Any, events: Sequence[PlotEvent], t_range: tuple[float, flo
                    loc="lower right", ncol=len(kinds), fontsize=8, frameon=False)
 
 
-def write_plots(result: RunResult, out_dir: Path) -> list[Path]:
+def write_plots(result: RunResult, out_dir: Path) -> list[Path]:  # noqa: PLR0915 - one plot after another
     """PNG plots an engineer expects (see the module docstring). Returns the written paths."""
     import matplotlib  # noqa: PLC0415  (heavy; only when plots are asked for)
 
@@ -524,7 +524,7 @@ class FaultDetection:
         return self.detected_s is not None and self.bound_s is not None and self.detected_s <= self.bound_s + 1e-6
 
 
-def expected_detection(fault: Fault, config: DaemonConfig) -> tuple[tuple[str, ...], float | None]:
+def expected_detection(fault: Fault, config: DaemonConfig) -> tuple[tuple[str, ...], float | None]:  # noqa: PLR0911 - one return per fault kind
     """The alarm codes that prove ``fault`` was detected, and the configured bound on the delay [s].
 
     Bounds (``dt`` the control period, ``T`` the target sensor's nominal period): freeze
