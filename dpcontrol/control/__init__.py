@@ -1,8 +1,8 @@
 """DP position controllers (nonlinear PID / PD + bias, MRAC), heading autopilot, wind feed-forward."""
 
-from dpcontrol.control.autopilot import AutopilotConfig, AutopilotOutput, HeadingAutopilot
+from dpcontrol.control.autopilot import AutopilotConfig, AutopilotController, AutopilotOutput, HeadingAutopilot
 from dpcontrol.control.base import ALL_DOFS, HEADING_ONLY, ControlOutput, MassAdaptation, PositionController
-from dpcontrol.control.factory import control_config_from_mapping, make_controller
+from dpcontrol.control.factory import CONTROL_KINDS, ControlConfig, control_config_from_mapping, make_controller
 from dpcontrol.control.mrac import MracConfig, MracController, default_mrac_config
 from dpcontrol.control.pid import PidConfig, PidController, default_pid_config, pole_placement_gains
 from dpcontrol.control.wind import (
@@ -14,10 +14,13 @@ from dpcontrol.control.wind import (
 
 __all__ = [
     "ALL_DOFS",
+    "CONTROL_KINDS",
     "HEADING_ONLY",
     "AutopilotConfig",
+    "AutopilotController",
     "AutopilotOutput",
     "BlendermannCoefficients",
+    "ControlConfig",
     "ControlOutput",
     "HeadingAutopilot",
     "MassAdaptation",

@@ -34,11 +34,16 @@ course by ``δ_b/(K_p T/K)`` until the slow integrator (``ω_i = ω_n/10``) has 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from dpbase.frames import ssa
+from dpbase.schema import ConfigError, Section, join
+from dpcontrol.control.base import HEADING_ONLY, ControlOutput
+from dpcontrol.guidance.reference_model import Reference
 from dpcontrol.models.vessels import VesselData
 
 
@@ -240,3 +245,80 @@ class HeadingAutopilot:
             raise ValueError("autopilot state must be finite")
         self._integral = integral
         self._rudder = rudder
+
+
+def autopilot_config_from_mapping(value: object, vessel: VesselData, path: str = "control") -> AutopilotConfig:
+    """Validate a ``control: {kind: autopilot, ...}`` mapping for a vessel with a Nomoto model and a rudder.
+
+    Keys: ``kind`` (``autopilot``), ``natural_frequency_radps`` (0.05), ``relative_damping`` (0.8),
+    ``bias_feedforward`` (true); see :meth:`AutopilotConfig.for_vessel`.
+
+    Raises
+    ------
+    ConfigError
+        Naming the key path and what was expected (``<path>.kind`` for a vessel without a Nomoto model or a
+        rudder).
+    """
+    section = Section.of(value, path)
+    section.string("kind", "autopilot", choices=("autopilot",))
+    natural = section.number("natural_frequency_radps", 0.05, minimum=0.0, exclusive_minimum=True)
+    zeta = section.number("relative_damping", 0.8, minimum=0.0, exclusive_minimum=True)
+    bias = section.boolean("bias_feedforward", True)
+    section.finish()
+    try:
+        return AutopilotConfig.for_vessel(vessel, natural, zeta, bias)
+    except ValueError as error:
+        raise ConfigError(join(section.path, "kind"), "a vessel with a Nomoto model and a rudder",
+                          str(error)) from None
+
+
+class AutopilotController:
+    """The heading autopilot as a controller of the runtime (:class:`~dpcontrol.control.base.PositionController`).
+
+    It holds heading only and steers with the rudder (``rudder_steering``): its output's ``tau_b`` is
+    ``[0, 0, τ_N]`` and ``rudder_rad`` the rudder command of eq. (67); the heading channel of the reference
+    (``ψ_d, r_d, ṙ_d``) and the estimate's yaw bias moment feed :meth:`HeadingAutopilot.step`.
+    """
+
+    rudder_steering = True
+    mass_adaptation = None
+
+    def __init__(self, config: AutopilotConfig) -> None:
+        self.pilot = HeadingAutopilot(config)
+        self._out = np.zeros(9)  # tau_b, error_b, velocity_error_b: the views handed out each step
+        self._rudder_rad = 0.0  # the last rudder command [rad] (the rate limit starts there after a reset)
+
+    @property
+    def config(self) -> AutopilotConfig:
+        return self.pilot.config
+
+    def step(self, dt_s: float, eta_hat_n: np.ndarray, nu_hat_b: np.ndarray, bias_hat_b: np.ndarray | None,
+             reference: Reference, *, dof_enabled: Sequence[bool] = HEADING_ONLY,
+             tau_wind_ff_b: np.ndarray | None = None) -> ControlOutput:
+        """One control period of eqs. (64)–(67) (``dof_enabled`` is ignored: the autopilot holds heading only)."""
+        r_d = float(reference.eta_dot_d_n[2])
+        pilot = self.pilot.step(dt_s, float(eta_hat_n[2]), float(nu_hat_b[2]), float(reference.eta_d_n[2]),
+                                r_d_radps=r_d, r_dot_d_radps2=float(reference.eta_ddot_d_n[2]),
+                                tau_wind_n_nm=None if tau_wind_ff_b is None else float(tau_wind_ff_b[2]),
+                                tau_bias_n_nm=None if bias_hat_b is None else float(bias_hat_b[2]))
+        self._rudder_rad = pilot.rudder_rad
+        out = self._out
+        out[:] = 0.0
+        out[2] = pilot.tau_n_nm
+        out[5] = pilot.heading_error_rad
+        out[8] = float(nu_hat_b[2]) - r_d
+        return ControlOutput(out[0:3], out[3:6], out[6:9], None, rudder_rad=pilot.rudder_rad)
+
+    def notify_achieved(self, tau_achieved_b: np.ndarray) -> None:
+        """Nothing to do: the rudder's own limits are the autopilot's anti-windup."""
+
+    def reset(self) -> None:
+        """Clear the integrator (a new engagement); the rate limit starts from the last rudder command."""
+        self.pilot.reset(self._rudder_rad)
+
+    def state_dict(self) -> dict[str, Any]:
+        return self.pilot.state_dict()
+
+    def load_state_dict(self, state: Mapping[str, Any]) -> None:
+        self.pilot.load_state_dict(state)
+        self._rudder_rad = float(state["rudder_rad"])

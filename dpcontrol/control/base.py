@@ -43,12 +43,16 @@ class ControlOutput:
         ``damping_surge_nspm``, ``damping_sway_nspm``, ``damping_yaw_nmsprad``) and the pose of its
         reference model ``y_M`` at this step in NED (``ref_model_north_m``, ``ref_model_east_m``,
         ``ref_model_heading_rad``); None for PID.
+    rudder_rad : float or None
+        The rudder command [rad] of a controller that steers with the rudder (``rudder_steering``): the
+        allocation sets it directly; None for the DP controllers.
     """
 
     tau_b: np.ndarray
     error_b: np.ndarray
     velocity_error_b: np.ndarray
     parameters: Mapping[str, float] | None = None
+    rudder_rad: float | None = None
 
 
 class MassAdaptation(Protocol):
@@ -92,11 +96,17 @@ class PositionController(Protocol):
     """What the runtime calls every control period (PID and MRAC both implement it).
 
     ``mass_adaptation`` is the controller's inertia estimation for the runtime to supervise (the MRAC
-    itself), or None for a controller with fixed parameters.
+    itself), or None for a controller with fixed parameters. ``rudder_steering``: the controller holds heading
+    only and steers with the rudder (the course-keeping autopilot): its output carries the rudder command, the
+    runtime engages it in ``auto_heading`` and feeds the estimator the rudder angle; False for the DP
+    controllers, which ask the allocation for a force in every DOF.
     """
 
     @property
     def mass_adaptation(self) -> MassAdaptation | None: ...
+
+    @property
+    def rudder_steering(self) -> bool: ...
 
     def step(self, dt_s: float, eta_hat_n: np.ndarray, nu_hat_b: np.ndarray, bias_hat_b: np.ndarray | None,
              reference: Reference, *, dof_enabled: Sequence[bool] = ALL_DOFS,

@@ -513,6 +513,8 @@ class MracController:
     loops of scalar arithmetic, which as Python floats cost ≈ 30 µs per step.
     """
 
+    rudder_steering = False  # a DP controller: a force in every DOF (see PositionController)
+
     def __init__(self, config: MracConfig, adapt: bool | None = None) -> None:
         self._config = config
         self._adapt = config.adapt if adapt is None else bool(adapt)

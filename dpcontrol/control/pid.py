@@ -273,6 +273,8 @@ class PidController:
     state held here in small arrays; as numpy calls on 3-vectors it cost ≈ 30–50 µs.
     """
 
+    rudder_steering = False  # a DP controller: a force in every DOF (see PositionController)
+
     def __init__(self, config: PidConfig) -> None:
         self._config = config
         gains = np.zeros((G_ROWS, 3))

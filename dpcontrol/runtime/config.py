@@ -19,7 +19,7 @@ from dpbase.schema import ConfigError, Section, join, parse_list
 from dpbase.yamlfile import load_yaml, read_yaml_file
 from dpcontrol.allocation.allocator import allocator_kwargs_from_mapping
 from dpcontrol.allocation.consequence import FailureGroup
-from dpcontrol.control import AutopilotConfig, MracConfig, PidConfig, control_config_from_mapping
+from dpcontrol.control import CONTROL_KINDS, ControlConfig, control_config_from_mapping
 from dpcontrol.estimation import WaveFilterConfig
 from dpcontrol.guidance import ReferenceModelConfig, reference_config_from_mapping
 from dpcontrol.models.vessels import VesselData, vessel_from_config
@@ -67,7 +67,6 @@ class SensorRoute:
 
 
 ESTIMATOR_KINDS = ("mmae", "kf", "rpem", "pem", "raw", "kalman_bucy", "heading_kf")
-CONTROL_KINDS = ("mrac", "pid", "autopilot")
 #: The sections that set how the controller behaves, as opposed to the installation (vessel_id, transports,
 #: sensors, zenoh, recorder, state, loop): what a scenario's ``controller:`` or an example configuration gives.
 CONTROLLER_SECTIONS = ("estimator", "control", "guidance", "allocation", "hub", "fallback", "thruster_monitor",
@@ -89,7 +88,7 @@ class ControlSettings:
     """Controller selection with its validated core configuration."""
 
     kind: str
-    config: PidConfig | MracConfig | AutopilotConfig
+    config: ControlConfig
 
 
 @dataclass(frozen=True)
@@ -362,17 +361,7 @@ def _parse_estimator(section: Section, vessel: VesselData, rate_hz: float,
 
 def _parse_control(section: Section, vessel: VesselData) -> ControlSettings:
     kind = section.string("kind", "mrac", choices=CONTROL_KINDS)
-    if kind == "autopilot":
-        natural = section.number("natural_frequency_radps", 0.05, minimum=0.0, exclusive_minimum=True)
-        zeta = section.number("relative_damping", 0.8, minimum=0.0, exclusive_minimum=True)
-        bias = section.boolean("bias_feedforward", True)
-        section.finish()
-        try:
-            config = AutopilotConfig.for_vessel(vessel, natural, zeta, bias)
-        except ValueError as error:
-            raise ConfigError(f"{section.path}.kind", "a vessel with a Nomoto model and a rudder", str(error)) from None
-        return ControlSettings(kind, config)
-    section._read.update(section.data)
+    section._read.update(section.data)  # (the kind's own parser reads and checks every key)
     return ControlSettings(kind, control_config_from_mapping(dict(section.data), vessel, section.path))
 
 

@@ -36,7 +36,7 @@ from dpbase.geodesy import LocalFrame
 from dpbase.requests import RequestOutcome, SetpointRequest
 from dpbase.schema import ConfigError
 from dpcontrol.allocation import AllocationResult, ThrustAllocator
-from dpcontrol.control import ALL_DOFS, HEADING_ONLY, AutopilotConfig, HeadingAutopilot, MassAdaptation, make_controller
+from dpcontrol.control import ALL_DOFS, HEADING_ONLY, MassAdaptation, make_controller
 from dpcontrol.estimation import WaveFilterOutput
 from dpcontrol.estimation.wave_band import WaveBandMeter
 from dpcontrol.guidance import Reference, ReferenceModel
@@ -155,18 +155,15 @@ class DpController:
                                             dict(config.estimator.options))
         with _section_of_config("guidance", config):
             self.reference_model = ReferenceModel(config.guidance)
-        self.autopilot: HeadingAutopilot | None = None
         with _section_of_config("control", config):
-            if isinstance(config.control.config, AutopilotConfig):
-                self.autopilot = HeadingAutopilot(config.control.config)
-                self.controller = None
-            else:
-                self.controller = make_controller(config.control.config)
+            self.controller = make_controller(config.control.config)
+        # a course-keeping autopilot: heading only, the rudder set directly (see PositionController)
+        self.rudder_steering = self.controller.rudder_steering
         # An adapting MRAC with a DP wave filter: the filter's model inertia follows the MRAC's mass estimate
         # between set-point moves (see MassAdaptiveEstimator: on M₀ alone the filter misleads the MRAC).
         self._mass_adaptive: MassAdaptiveEstimator | None = None
         # MRAC supervision (_supervise): an estimate on a projection bound stops the adaptation
-        self._mrac = None if self.controller is None else self.controller.mass_adaptation
+        self._mrac = self.controller.mass_adaptation
         if self._mrac is not None and self._mrac.adapting and config.estimator.kind in WAVE_FILTER_KINDS:
             self._mass_adaptive = MassAdaptiveEstimator(self.estimator, np.diag(vessel.mass_matrix))
             self.estimator = self._mass_adaptive
@@ -427,33 +424,24 @@ class DpController:
                 target = setpoint
             reference = self._jerk_limited(dt, self.reference_model.step(dt, target))
             out.reference = reference
-            if self.autopilot is not None:
-                pilot = self.autopilot.step(dt, float(estimate.eta_hat_n[2]), float(estimate.nu_hat_b[2]),
-                                            float(reference.eta_d_n[2]), r_d_radps=float(reference.eta_dot_d_n[2]),
-                                            r_dot_d_radps2=float(reference.eta_ddot_d_n[2]),
-                                            tau_bias_n_nm=float(estimate.bias_hat_b[2]))
-                rudder_command = pilot.rudder_rad
-                tau[:] = (0.0, 0.0, pilot.tau_n_nm)
-            elif self.controller is not None:
-                dofs = HEADING_ONLY if self.mode is Mode.AUTO_HEADING else ALL_DOFS
-                control = self.controller.step(dt, estimate.eta_hat_n, estimate.nu_hat_b, estimate.bias_hat_b,
-                                               reference, dof_enabled=dofs)
-                tau[:] = control.tau_b
-                parameters = control.parameters
-                if parameters is not None:
-                    # the controller builds a new dict every step: kept as it is (another mapping is copied)
-                    out.mrac = parameters if type(parameters) is dict else dict(parameters)
-                if self._mrac is not None and self._mrac.adapting:
-                    self._supervise(self._mrac, t_s)
-                if self._mass_adaptive is not None and self._mrac is not None and not any(self._mrac.excited):
-                    # only when â₂ changed (it is held between moves): saves an array and the filter's
-                    # ratio update on most steps; the same values give the same ratio
-                    mass = self._mrac.mass_hat_floats
-                    if mass != self._mass_sent:
-                        self._mass_adaptive.set_mass_estimate(np.array(mass))
-                        self._mass_sent = mass
-            else:
-                tau[:] = 0.0
+            dofs = HEADING_ONLY if self.mode is Mode.AUTO_HEADING else ALL_DOFS
+            control = self.controller.step(dt, estimate.eta_hat_n, estimate.nu_hat_b, estimate.bias_hat_b,
+                                           reference, dof_enabled=dofs)
+            tau[:] = control.tau_b
+            rudder_command = control.rudder_rad
+            parameters = control.parameters
+            if parameters is not None:
+                # the controller builds a new dict every step: kept as it is (another mapping is copied)
+                out.mrac = parameters if type(parameters) is dict else dict(parameters)
+            if self._mrac is not None and self._mrac.adapting:
+                self._supervise(self._mrac, t_s)
+            if self._mass_adaptive is not None and self._mrac is not None and not any(self._mrac.excited):
+                # only when â₂ changed (it is held between moves): saves an array and the filter's
+                # ratio update on most steps; the same values give the same ratio
+                mass = self._mrac.mass_hat_floats
+                if mass != self._mass_sent:
+                    self._mass_adaptive.set_mass_estimate(np.array(mass))
+                    self._mass_sent = mass
         meter = self.wave_band
         if meter is not None:
             if self.mode is Mode.STANDBY or out.estimate is None:
@@ -471,7 +459,7 @@ class DpController:
         self._allocate(dt, available, rudder_command)
         t4 = clock() if clock else 0.0
 
-        if self.controller is not None and self.mode is not Mode.STANDBY:
+        if self.mode is not Mode.STANDBY:
             self.controller.notify_achieved(out.tau_achieved_b)
         self._capability_alarm(t_s)
         estimate = out.estimate
@@ -525,7 +513,7 @@ class DpController:
         """The force the estimator predicts the next period with: what the drives deliver *now* (this
         cycle's feedback), else the force allocated last cycle; the rudder angle for an autopilot."""
         out = self.out
-        if self.autopilot is not None:
+        if self.rudder_steering:
             rudder = 0.0 if self._rudder_index is None else float(out.azimuth_rad[self._rudder_index])
             self._tau_input_b[:] = (0.0, 0.0, self._rudder_sign * rudder)
             return
@@ -540,7 +528,7 @@ class DpController:
         if self.mode is Mode.STANDBY or out.estimate is None:
             # Standby: thrust ramps to zero within the drives' rate limits (no jump).
             result = self.allocator.allocate(self._zero3, available, dt_s=dt)
-        elif self.autopilot is not None:
+        elif self.rudder_steering:
             # Course keeping: the rudder is commanded directly; the propeller holds its thrust.
             result = self.allocator.allocate(self._zero3, available, dt_s=dt)
         else:
@@ -566,7 +554,7 @@ class DpController:
         auto = self.config.auto_engage_s
         if auto is not None and not self._engaged_once and self._valid_since_t_s is not None \
                 and t_s - self._valid_since_t_s >= auto and wanted is Mode.STANDBY:
-            wanted = Mode.AUTO_HEADING if self.autopilot is not None else Mode.AUTO_POSITION
+            wanted = Mode.AUTO_HEADING if self.rudder_steering else Mode.AUTO_POSITION
             self._requested_mode = wanted
         # Loss of references.
         # (the alarm texts are built only while the alarm is active — formatting them every step cost more
@@ -633,8 +621,7 @@ class DpController:
                 nu_n[2] = max(-limits.max_yaw_rate_radps, min(limits.max_yaw_rate_radps, nu_n[2]))
                 self.reference_model.reset(estimate.eta_hat_n, nu_n)
                 self._accel_ff_n = None
-                if self.controller is not None:
-                    self.controller.reset()
+                self.controller.reset()
                 if not self._setpoint_given:
                     self.setpoint_n[:] = estimate.eta_hat_n
             self._engaged_once = True
@@ -673,7 +660,7 @@ class DpController:
         """:meth:`_thrusters_insufficient`'s verdict for an availability mask (uncached)."""
         if not available.any():
             return "no thruster available"
-        if self.autopilot is not None:
+        if self.rudder_steering:
             if self._rudder_index is None or not available[self._rudder_index]:
                 return "the rudder is not available"
             return ""
@@ -805,8 +792,7 @@ class DpController:
             state["reference"] = self.reference_model.state_dict()
             if self._accel_ff_n is not None:
                 state["accel_ff_n"] = list(self._accel_ff_n)
-        if self.controller is not None:
-            state["controller"] = self.controller.state_dict()
+        state["controller"] = self.controller.state_dict()
         consequence = None if self.consequence is None else self.consequence.state_dict(t_s)
         if consequence is not None:
             state["consequence"] = consequence
@@ -829,7 +815,7 @@ class DpController:
             self.estimator.load_state_dict(state["estimator"])
             self._estimator_ready = True
             self._valid_since_t_s = t_s
-        if self.controller is not None and "controller" in state:
+        if "controller" in state:
             self.controller.load_state_dict(state["controller"])
         mode = Mode(state.get("mode", "standby"))
         if mode is not Mode.STANDBY and "reference" in state and self._estimator_ready:

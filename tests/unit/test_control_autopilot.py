@@ -8,8 +8,16 @@ import math
 import numpy as np
 import pytest
 
-from dpcontrol.control import AutopilotConfig, HeadingAutopilot
-from dpcontrol.guidance import ReferenceModel, default_reference_config
+from dpbase.schema import ConfigError
+from dpcontrol.control import (
+    AutopilotConfig,
+    AutopilotController,
+    HeadingAutopilot,
+    PositionController,
+    control_config_from_mapping,
+    make_controller,
+)
+from dpcontrol.guidance import Reference, ReferenceModel, default_reference_config
 from dpcontrol.models.vessels import MARINER, SUPPLY
 
 BIAS_RADPS2 = 2e-4  # constant yaw disturbance b of eq. (61) (≈ 6° of rudder to hold)
@@ -160,3 +168,37 @@ def test_bias_feedforward_holds_the_course_before_the_integrator_catches_up() ->
     np.testing.assert_array_equal(ignored, _hold_course_against_bias(off, bias_ff=False))
     with pytest.raises(ValueError, match="tau_bias"):
         HeadingAutopilot(config).step(1.0, 0.0, 0.0, 0.0, tau_bias_n_nm=math.inf)
+
+
+def test_the_autopilot_is_a_controller_of_the_runtime_like_the_others() -> None:
+    """Built by the same factory from the same section, it steers with the rudder and holds heading only: the
+    law's moment in yaw, its rudder command beside it, the same numbers as the bare autopilot."""
+    config = control_config_from_mapping({"kind": "autopilot", "natural_frequency_radps": 0.06}, MARINER)
+    controller = make_controller(config)
+    assert isinstance(controller, PositionController) and isinstance(controller, AutopilotController)
+    assert controller.rudder_steering and controller.mass_adaptation is None
+    bare = HeadingAutopilot(AutopilotConfig.for_vessel(MARINER, 0.06))
+    reference = Reference(np.array([0.0, 0.0, 0.3]), np.array([0.0, 0.0, 0.01]), np.array([0.0, 0.0, 1e-4]))
+    for _ in range(20):
+        out = controller.step(0.5, np.array([5.0, 1.0, 0.1]), np.array([7.0, 0.2, 0.002]), np.array([0, 0, 3e5]),
+                              reference)
+        expected = bare.step(0.5, 0.1, 0.002, 0.3, r_d_radps=0.01, r_dot_d_radps2=1e-4, tau_bias_n_nm=3e5)
+    assert out.rudder_rad == expected.rudder_rad
+    np.testing.assert_array_equal(out.tau_b, [0.0, 0.0, expected.tau_n_nm])
+    assert out.error_b[2] == expected.heading_error_rad and out.velocity_error_b[2] == pytest.approx(0.002 - 0.01)
+    with pytest.raises(ConfigError, match=r"control\.kind"):  # no Nomoto model, no rudder
+        control_config_from_mapping({"kind": "autopilot"}, SUPPLY)
+
+
+def test_a_new_engagement_clears_the_integrator_and_a_restart_keeps_it() -> None:
+    controller = AutopilotController(AutopilotConfig.for_vessel(MARINER))
+    hold = Reference.hold(np.array([0.0, 0.0, 0.2]))
+    for _ in range(40):
+        out = controller.step(0.5, np.zeros(3), np.zeros(3), None, hold)
+    state = controller.state_dict()
+    assert state["integral_rad_s"] != 0.0
+    restarted = AutopilotController(AutopilotConfig.for_vessel(MARINER))
+    restarted.load_state_dict(json.loads(json.dumps(state)))
+    assert restarted.state_dict() == state
+    controller.reset()  # engaged again (the runtime resets its controller on a bumpless entry)
+    assert controller.state_dict() == {"integral_rad_s": 0.0, "rudder_rad": out.rudder_rad}

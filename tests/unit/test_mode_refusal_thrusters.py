@@ -95,7 +95,7 @@ def test_every_example_vessel_may_engage_with_all_its_thrusters(example: str) ->
     config = yaml.safe_load((ROOT / "deploy" / "config" / f"{example}.yaml").read_text(encoding="utf-8"))
     controller = DpController(parse_config(config))
     everything = np.ones(len(controller.thrusters), dtype=bool)
-    modes = [Mode.AUTO_HEADING] if controller.autopilot is not None else [Mode.AUTO_POSITION, Mode.AUTO_HEADING]
+    modes = [Mode.AUTO_HEADING] if controller.rudder_steering else [Mode.AUTO_POSITION, Mode.AUTO_HEADING]
     for mode in modes:
         assert controller._judge_thrusters(everything, mode) == ""
     assert controller._judge_thrusters(np.zeros_like(everything), modes[0]) == "no thruster available"
