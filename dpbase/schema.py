@@ -261,12 +261,13 @@ class Section:
         value = self.raw(key, default)
         return check_matrix(value, join(self.path, key), shape)
 
-    def finish(self) -> None:
-        """Reject keys that were never read (typos name the key and list the valid ones)."""
+    def finish(self, also_valid: Iterable[str] = ()) -> None:
+        """Reject keys that were never read (typos name the key and list the valid ones: those read, and
+        ``also_valid``, the keys of a section whose parser reads only the keys present)."""
         read = self._read
         unknown = [key for key in self.data if key not in read]
         if unknown:
-            valid = ", ".join(sorted(read)) or "none"
+            valid = ", ".join(sorted(set(read) | set(also_valid))) or "none"
             raise ConfigError(join(self.path, unknown[0]), f"a known key (valid keys here: {valid})",
                               show_got=False)
 

@@ -442,7 +442,9 @@ class WaveFilterConfig:
                 if key in ("forgetting_time_s", "lf_excess_limit") and value in ("inf", ".inf"):
                     value = math.inf
                 values[key] = tuple(value) if isinstance(value, list) else value
-        section.finish()
+        # (only the keys present were read: a typo is told every key of the section, the runtime's among them)
+        frequency = {"mmae": ("omegas_rad_s",), "raw": ()}.get(kind, ("omega0_rad_s",))
+        section.finish(also_valid=known | {"zeta", *frequency})
         try:
             return WaveFilterConfig(mass_matrix=mass_matrix, damping_matrix=damping_matrix,
                                     sample_time_s=sample_time_s, kind=kind, omegas_rad_s=tuple(omegas_rad_s),

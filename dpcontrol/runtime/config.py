@@ -21,6 +21,7 @@ from dpcontrol.allocation.allocator import allocator_kwargs_from_mapping
 from dpcontrol.allocation.consequence import FailureGroup
 from dpcontrol.control import CONTROL_KINDS, ControlConfig, control_config_from_mapping
 from dpcontrol.estimation import WaveFilterConfig
+from dpcontrol.estimation.config import DEFAULT_OMEGAS_RAD_S
 from dpcontrol.guidance import ReferenceModelConfig, reference_config_from_mapping
 from dpcontrol.models.vessels import VesselData, vessel_from_config
 from dpcontrol.runtime.consequence import ConsequenceSettings
@@ -81,6 +82,7 @@ class EstimatorSettings:
     kind: str
     wave_filter: WaveFilterConfig | None
     options: Mapping[str, Any] = field(default_factory=dict)
+    notices: tuple[str, ...] = ()  # deprecated key names read under their new name (see DaemonConfig.notices)
 
 
 @dataclass(frozen=True)
@@ -184,6 +186,12 @@ class DaemonConfig:
     @property
     def sample_time_s(self) -> float:
         return 1.0 / self.rate_hz
+
+    @property
+    def notices(self) -> tuple[str, ...]:
+        """What the file should change although it is accepted: a key under its old name (read as the new one
+        for one release). ``check-config`` prints them, the daemon logs them at start."""
+        return self.estimator.notices
 
     @property
     def sensors(self) -> tuple[SensorConfig, ...]:
@@ -329,22 +337,30 @@ def _parse_estimator(section: Section, vessel: VesselData, rate_hz: float,
             clean["bias_time_s"] = sub.number("bias_time_s", 100.0, minimum=0.0, exclusive_minimum=True)
         sub.finish()
         return EstimatorSettings(kind, None, clean)
+    notices: list[str] = []
+    single_key = "omega0_rad_s"  # one filter frequency (kf, pem, rpem)
+    if "omega_rad_s" in options and kind != "mmae":  # kf's ω0 had its own name until this release
+        if "omega0_rad_s" in options:
+            raise ConfigError(join(section.path, "omega_rad_s"), "omega0_rad_s alone (omega_rad_s is its old name)",
+                              options["omega_rad_s"])
+        single_key = "omega_rad_s"  # (read under the name the file gives, so that an error names it)
+        notices.append(f"{join(section.path, 'omega_rad_s')} is deprecated: write omega0_rad_s (read as it in this "
+                       "release)")
     omegas: tuple[float, ...]
     if kind == "mmae":
         omegas = tuple(float(v) for v in Section.of(options, section.path).vector(
-            "omegas_rad_s", None, [0.3, 0.45, 0.6, 0.75, 0.9, 1.05, 1.2, 1.35]))
+            "omegas_rad_s", None, list(DEFAULT_OMEGAS_RAD_S)))
     elif kind in ("kf", "rpem", "pem"):
-        name = "omega_rad_s" if kind == "kf" else "omega0_rad_s"
-        omegas = (Section.of(options, section.path).number(name, 0.8),)
+        omegas = (Section.of(options, section.path).number(single_key, 0.8),)
     else:
         omegas = ()
-    omega_key = {"mmae": "omegas_rad_s", "kf": "omega_rad_s", "rpem": "omega0_rad_s", "pem": "omega0_rad_s"}.get(kind)
+    omega_key = "omegas_rad_s" if kind == "mmae" else single_key
     for i, omega in enumerate(omegas):
         if not 0.05 <= omega <= 5.0:
             where = f"{section.path}.{omega_key}" + (f"[{i}]" if kind == "mmae" else "")
             raise ConfigError(where, "a wave peak frequency in [0.05, 5] rad/s", omega)
     zeta = options.get("zeta", 0.1)
-    extra = {k: v for k, v in options.items() if k not in ("omegas_rad_s", "omega_rad_s", "omega0_rad_s", "zeta")}
+    extra = {k: v for k, v in options.items() if k not in (omega_key, "zeta")}  # (another kind's key: refused below)
     # The filter's measurement noise defaults to what the configured sensors claim (the quietest of
     # each kind, since the hub fuses them), instead of the length-based rule.
     position = [r.sensor.sigma for r in routes if r.sensor.kind is SensorKind.POSITION]
@@ -356,7 +372,7 @@ def _parse_estimator(section: Section, vessel: VesselData, rate_hz: float,
     wave_filter = WaveFilterConfig.from_options(
         vessel.mass_matrix, vessel.damping_matrix, 1.0 / rate_hz, kind=kind, omegas_rad_s=omegas or (0.8,),
         zeta=zeta, options=extra, length_m=vessel.length_m, path=section.path)
-    return EstimatorSettings(kind, wave_filter, {})
+    return EstimatorSettings(kind, wave_filter, {}, tuple(notices))
 
 
 def _parse_control(section: Section, vessel: VesselData) -> ControlSettings:

@@ -537,6 +537,8 @@ class Daemon:
         node = self.node
         # sea-state classes for this hull (seed 001 Table I, Froude-scaled from its 100 m supply vessel)
         self._sea_states = schemas.SeaStateTable.froude_scaled(cfg.vessel.length_m)
+        for notice in cfg.notices:  # (check-config prints them too)
+            log.warning("configuration: %s", notice)
         security = cfg.zenoh.security
         open_to_all = unprotected_endpoints(cfg.zenoh.listen, cfg.zenoh.connect, security)
         if open_to_all:  # (the configuration refused this unless insecure: true)

@@ -118,6 +118,36 @@ def test_base_config_is_valid() -> None:
     assert config.estimator.wave_filter.heading_noise_std_rad == pytest.approx(0.1 * 3.141592653589793 / 180)
 
 
+def test_an_old_key_name_is_read_with_a_warning_and_a_typo_is_told_every_valid_key(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """kf's wave frequency is ``omega0_rad_s`` like every other single-frequency filter; ``omega_rad_s`` (its old
+    name) is read as it for one release, and check-config says so."""
+    old = copy.deepcopy(BASE)
+    old["estimator"] = {"kind": "kf", "omega_rad_s": 0.7}
+    config = parse_config(old)
+    assert config.estimator.wave_filter.omegas_rad_s == (0.7,)
+    assert config.notices == ("estimator.omega_rad_s is deprecated: write omega0_rad_s (read as it in this release)",)
+    new = copy.deepcopy(BASE)
+    new["estimator"] = {"kind": "kf", "omega0_rad_s": 0.7}
+    renamed = parse_config(new)
+    assert renamed.notices == () and renamed.estimator.wave_filter.omegas_rad_s == (0.7,)
+    path = tmp_path / "old.yaml"
+    path.write_text(yaml.safe_dump(old))
+    assert main(["check-config", str(path)]) == 0
+    assert "warning: estimator.omega_rad_s is deprecated" in capsys.readouterr().err
+    both = copy.deepcopy(BASE)
+    both["estimator"] = {"kind": "kf", "omega_rad_s": 0.7, "omega0_rad_s": 0.7}
+    with pytest.raises(ConfigError, match="omega0_rad_s alone"):
+        parse_config(both)
+    typo = copy.deepcopy(BASE)
+    typo["estimator"] = {"kind": "mmae", "wf_positon_std_m": 0.3}
+    with pytest.raises(ConfigError) as refused:
+        parse_config(typo)
+    message = str(refused.value)  # the keys the parser never read because they were absent are listed too
+    assert "estimator.wf_positon_std_m" in message
+    assert all(key in message for key in ("wf_position_std_m", "omegas_rad_s", "zeta", "bias_drift_time_s"))
+
+
 def test_check_config_cli_refuses_a_broken_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     broken = copy.deepcopy(BASE)
     broken["sensors"][0]["rate_hz"] = "often"
