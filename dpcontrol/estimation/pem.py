@@ -210,6 +210,8 @@ class PemWaveFilter:
 
     kind = "pem"
 
+    dead_reckons = True  # the LF vessel model with the force input (see WaveFilter)
+
     def __init__(self, config: WaveFilterConfig) -> None:
         if config.kind != "pem":
             raise ValueError(f"PemWaveFilter runs kind pem, not {config.kind!r}")

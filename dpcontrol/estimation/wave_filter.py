@@ -132,9 +132,17 @@ class WaveFilterOutput:
 
 @runtime_checkable
 class WaveFilter(Protocol):
-    """The protocol the runtime calls for every estimator kind."""
+    """The protocol the runtime calls for every estimator kind.
+
+    ``dead_reckons``: the estimator's model carries the pose through a reference outage (a force input and a
+    vessel model: every wave filter). A kinematic filter without one (seed 004's Kalman–Bucy) only extrapolates
+    the last velocity, which the runtime does not hold position on (see ``FallbackSettings``).
+    """
 
     config: WaveFilterConfig
+
+    @property
+    def dead_reckons(self) -> bool: ...
 
     def reset(self, y_n: np.ndarray) -> None:
         """Initialise on a fix [north_m, east_m, psi_rad]: LF pose = y, everything else 0.
@@ -184,6 +192,7 @@ class _FrameFilter:
     """Shared input checking, vessel-parallel frame handling and output for every kind."""
 
     kind: str
+    dead_reckons = True  # the LF vessel model with the force input (see WaveFilter)
 
     def __init__(self, config: WaveFilterConfig, index: StateIndex) -> None:
         self.config = config

@@ -104,7 +104,8 @@ class FallbackSettings:
     froze), ``hold_heading`` / ``zero_surge_sway`` (``auto_heading``: no surge and sway force) or ``standby``
     (zero thrust). A fall-back that lasted less than ``restore_within_s`` is undone when the references are
     back (the mode it fell back from is entered again, bumplessly, with an event); after that the operator
-    decides."""
+    decides. An estimator without a vessel model (``kalman_bucy``) cannot dead-reckon position: its loss takes
+    the fall-back at once, ``dead_reckoning`` read as ``hold_heading`` (``DpController._position_loss``)."""
 
     dead_reckoning_limit_s: float = 60.0
     position_loss: str = "dead_reckoning"

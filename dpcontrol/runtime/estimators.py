@@ -69,6 +69,7 @@ class KalmanBucyEstimator:
     """
 
     kind = "kalman_bucy"
+    dead_reckons = False  # no force input: the last velocity, extrapolated (see WaveFilter)
 
     def __init__(self, sample_time_s: float, *, process_noise_scale: float = 0.02) -> None:
         for name, value in (("sample_time_s", sample_time_s), ("process_noise_scale", process_noise_scale)):
@@ -209,6 +210,8 @@ class CourseKeepingEstimator:
 
     kind = "heading_kf"
 
+    dead_reckons = True  # the Nomoto model with the rudder input carries the heading
+
     def __init__(self, vessel: VesselData, sample_time_s: float, *, omega0_rad_s: float = 1.2, zeta: float = 0.1,
                  compass_std_rad: float = math.radians(0.5), wave_yaw_std_rad: float = math.radians(3.0),
                  bias_rudder_rad: float = math.radians(5.0), bias_time_s: float = 100.0) -> None:
@@ -320,6 +323,10 @@ class MassAdaptiveEstimator:
     mass_nominal : array_like, shape (3,)
         ``diag(M₀)`` [kg, kg, kg·m²].
     """
+
+    @property
+    def dead_reckons(self) -> bool:
+        return self.inner.dead_reckons
 
     def __init__(self, inner: WaveFilter, mass_nominal: np.ndarray) -> None:
         nominal = np.array(mass_nominal, dtype=float)

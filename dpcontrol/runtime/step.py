@@ -584,9 +584,8 @@ class DpController:
         if self.mode is not Mode.STANDBY:
             if heading_lost and hub.heading_lost_s >= fb.heading_loss_limit_s:
                 wanted = self._loss_limit(t_s, "heading", fb.heading_loss, fb.heading_loss_limit_s, wanted)
-            elif self.mode is Mode.AUTO_POSITION and dead_reckoning and \
-                    hub.position_lost_s >= fb.dead_reckoning_limit_s:
-                wanted = self._loss_limit(t_s, "position", fb.position_loss, fb.dead_reckoning_limit_s, wanted)
+            elif self.mode is Mode.AUTO_POSITION and dead_reckoning:
+                wanted = self._position_loss(t_s, hub.position_lost_s, wanted)
         fell_back = self._fell_back
         if fell_back is not None and wanted is self.mode and self._requested_mode is self.mode:
             wanted = self._restore(t_s, hub, fell_back)
@@ -706,6 +705,22 @@ class DpController:
         self.alarms.raise_(t_s, "control.adaptation", Severity.ALARM,
                            f"MRAC {_MASS_NAMES[dof]} estimate reached its bound ({ratio:.2g}x nominal): adaptation "
                            "suspended, nominal parameters (fixed PD) until a restart")
+
+    def _position_loss(self, t_s: float, lost_s: float, wanted: Mode) -> Mode:
+        """In ``auto_position`` with every position reference lost for ``lost_s``: the mode wanted after it.
+
+        An estimator without a vessel model (``dead_reckons`` False) only extrapolates the last velocity:
+        holding position on it pushes against an error that exists only in the estimate (the Blue Lady 17 m
+        off in a 90 s GNSS outage). Without a model there is no dead reckoning: the fall-back comes at once,
+        and ``dead_reckoning`` means keeping the heading with no surge and sway force (``hold_heading``).
+        """
+        fb = self.config.fallback
+        limit_s, action = fb.dead_reckoning_limit_s, fb.position_loss
+        if not self.estimator.dead_reckons:
+            limit_s, action = 0.0, "hold_heading" if action == "dead_reckoning" else action
+        if lost_s < limit_s:
+            return wanted
+        return self._loss_limit(t_s, "position", action, limit_s, wanted)
 
     def _loss_limit(self, t_s: float, kind: str, action: str, limit_s: float, wanted: Mode) -> Mode:
         """Every ``kind`` (``position``/``heading``) reference lost for ``limit_s``: keep holding on the model with a
