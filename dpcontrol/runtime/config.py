@@ -316,6 +316,19 @@ def _parse_hub(section: Section) -> HubConfig:
     return HubConfig(**values)
 
 
+def _wave_frequency(omega_rad_s: float, where: str, rate_hz: float) -> float:
+    """``omega_rad_s`` if a wave filter sampled at ``rate_hz`` can model it, else a ConfigError at ``where``.
+
+    The highest frequency is the sampling's, not a full-scale sea's (a model basin's waves on a 1:70 hull peak
+    at 5-8 rad/s): at least four samples a wave period, ``ω·Δt ≤ π/2``.
+    """
+    omega_max = math.pi / 2.0 * rate_hz
+    if not 0.05 <= omega_rad_s <= omega_max:
+        raise ConfigError(where, f"a wave peak frequency in [0.05, {omega_max:.3g}] rad/s (at most a quarter of the "
+                          f"{rate_hz:g} Hz sampling)", omega_rad_s)
+    return omega_rad_s
+
+
 def _parse_estimator(section: Section, vessel: VesselData, rate_hz: float,
                      routes: tuple[SensorRoute, ...] = ()) -> EstimatorSettings:
     kind = section.string("kind", "mmae", choices=ESTIMATOR_KINDS)
@@ -330,7 +343,8 @@ def _parse_estimator(section: Section, vessel: VesselData, rate_hz: float,
         else:
             if vessel.nomoto_gain_per_s is None or vessel.nomoto_time_constant_s is None:
                 raise ConfigError(f"{section.path}.kind", "a vessel with a Nomoto model for heading_kf", vessel.name)
-            clean["omega0_rad_s"] = sub.number("omega0_rad_s", 1.2, minimum=0.05, maximum=5.0)
+            clean["omega0_rad_s"] = _wave_frequency(sub.number("omega0_rad_s", 1.2, minimum=0.05),
+                                                    join(section.path, "omega0_rad_s"), rate_hz)
             clean["zeta"] = sub.number("zeta", 0.1, minimum=0.0, exclusive_minimum=True, maximum=1.0)
             for key, default in (("compass_std_deg", 0.5), ("wave_yaw_std_deg", 3.0), ("bias_rudder_deg", 5.0)):
                 value = sub.number(key, default, minimum=0.0, exclusive_minimum=key != "wave_yaw_std_deg")
@@ -357,9 +371,7 @@ def _parse_estimator(section: Section, vessel: VesselData, rate_hz: float,
         omegas = ()
     omega_key = "omegas_rad_s" if kind == "mmae" else single_key
     for i, omega in enumerate(omegas):
-        if not 0.05 <= omega <= 5.0:
-            where = f"{section.path}.{omega_key}" + (f"[{i}]" if kind == "mmae" else "")
-            raise ConfigError(where, "a wave peak frequency in [0.05, 5] rad/s", omega)
+        _wave_frequency(omega, f"{section.path}.{omega_key}" + (f"[{i}]" if kind == "mmae" else ""), rate_hz)
     zeta = options.get("zeta", 0.1)
     extra = {k: v for k, v in options.items() if k not in (omega_key, "zeta")}  # (another kind's key: refused below)
     # The filter's measurement noise defaults to what the configured sensors claim (the quietest of

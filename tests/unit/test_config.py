@@ -72,7 +72,7 @@ def test_every_shipped_example_validates(capsys: pytest.CaptureFixture[str]) -> 
     (lambda c: c.update(vessel={"base": "cybership2", "thrusters": [{"name": "t", "kind": "propeller_rudder",
                                                                       "x_m": -1, "y_m": 0, "max_thrust_n": 1}]}),
      "vessel.thrusters[0].rudder_max_angle_deg"),
-    (lambda c: c.update(estimator={"kind": "mmae", "omegas_rad_s": [0.3, 9.0]}), "estimator.omegas_rad_s[1]"),
+    (lambda c: c.update(estimator={"kind": "mmae", "omegas_rad_s": [0.3, 40.0]}), "estimator.omegas_rad_s[1]"),
     (lambda c: c.update(estimator={"kind": "kf", "omega_rad_s": "x"}), "estimator.omega_rad_s"),
     (lambda c: c.update(estimator={"kind": "ekf"}), "estimator.kind"),
     (lambda c: c.update(estimator={"kind": "kalman_bucy", "process_noise_scale": 0}),
@@ -146,6 +146,17 @@ def test_an_old_key_name_is_read_with_a_warning_and_a_typo_is_told_every_valid_k
     message = str(refused.value)  # the keys the parser never read because they were absent are listed too
     assert "estimator.wf_positon_std_m" in message
     assert all(key in message for key in ("wf_position_std_m", "omegas_rad_s", "zeta", "bias_drift_time_s"))
+
+
+def test_a_model_scale_bank_is_accepted_up_to_a_quarter_of_the_sampling() -> None:
+    """A model basin's waves on a 1:70 hull peak at 5-8 rad/s (a full-scale sea's 0.55-0.9 rad/s × √70): the
+    bank may hold them; the limit is the sampling's (four samples a wave period), not a full-scale sea's."""
+    config = copy.deepcopy(BASE)
+    config["estimator"] = {"kind": "mmae", "omegas_rad_s": [3.0, 4.5, 6.0, 7.5]}
+    assert parse_config(config).estimator.wave_filter.omegas_rad_s == (3.0, 4.5, 6.0, 7.5)
+    config["loop"] = {"rate_hz": 2.0}  # π/2 · 2 Hz = 3.14 rad/s
+    with pytest.raises(ConfigError, match=r"omegas_rad_s\[1\]: expected a wave peak frequency in \[0.05, 3.14\]"):
+        parse_config(config)
 
 
 def test_check_config_cli_refuses_a_broken_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
