@@ -619,12 +619,14 @@ def first_raise(events: Sequence[AlarmEvent], codes: Sequence[str], after_s: flo
 
 def fault_detections(result: RunResult) -> list[FaultDetection]:
     """Detection of every fault of the scenario, from the run's alarm events (see :func:`expected_detection`):
-    the first raise of one of its codes while it lasts, or within twice its bound of its start."""
+    the first raise of one of its codes while it lasts (a permanent fault: to the end of the run), or within twice
+    its bound of its start. A detection later than the bound is reported with its delay (the reader compares it
+    with ``bound_s``), never as none."""
     out = []
     for fault in result.scenario.faults:
         codes, bound = expected_detection(fault, result.config)
         # searched while the fault lasts, and at least twice its bound (a burst has no duration)
-        until = max(fault.end_s if math.isfinite(fault.end_s) else fault.t_s, fault.t_s + 2.0 * (bound or 0.0))
+        until = max(fault.end_s, fault.t_s + 2.0 * (bound or 0.0))
         hit = first_raise(result.alarm_events, codes, fault.t_s, until) if codes else None
         delay = None if hit is None else hit[0] - fault.t_s
         out.append(FaultDetection(fault, codes, bound, delay, None if hit is None else hit[1]))
