@@ -309,6 +309,9 @@ def parse_campaign(data: object, file: str | None = None, base_dir: Path | None 
 def _load_base(value: object, where: str, base_dir: Path) -> tuple[str, dict[str, Any]]:
     """A base scenario reference → (label, mapping)."""
     if isinstance(value, Mapping):
+        if len(value) == 1 and next(iter(value)) in KINDS:  # a distribution where the scenario goes
+            raise ConfigError(where, f"one scenario (a name, a file or a mapping); to vary it, write it under "
+                              f"vary: (vary: {{base: {{{next(iter(value))}: [...]}}}})", dict(value))
         return str(value.get("name", "inline")), copy.deepcopy(dict(value))
     if not isinstance(value, str) or not value:
         raise ConfigError(where, "a built-in scenario name, a scenario file or a scenario mapping", value)

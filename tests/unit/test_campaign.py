@@ -163,6 +163,11 @@ def test_vessel_choice_through_the_base_scenario() -> None:
     assert runs[0].seed == runs[1].seed
 
 
+def test_a_distribution_given_as_the_base_says_where_it_belongs() -> None:
+    with pytest.raises(ConfigError, match=r"test\.yaml: base: expected one scenario .* under vary: "):
+        _spec({"name": "v", "base": {"grid": ["supply-seed001", "cs2-seed000"]}, "runs": 1})
+
+
 def test_every_shipped_campaign_is_valid_and_covers_every_built_in_dp_vessel() -> None:
     vessels = set()
     for name in builtin_campaign_names():
