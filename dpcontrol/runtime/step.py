@@ -349,9 +349,9 @@ class DpController:
         return self.out.hub.y_n if self.out.hub is not None else self._zero3  # type: ignore[return-value]
 
     # ------------------------------------------------------------------ the step
-    def step(self, t_s: float, measurements: Sequence[Measurement] = (),  # noqa: C901, PLR0912, PLR0915 - the control cycle in its order; to become a pipeline of typed stages (docs/design.md §7)
+    def step(self, t_s: float, measurements: Sequence[Measurement] = (),
              feedback: Sequence[ThrusterFeedback] = (), requests: Sequence[SetpointRequest] = ()) -> StepOutput:
-        """One control period at time ``t_s`` [s] (see the module docstring)."""
+        """One control period at time ``t_s`` [s] (see the module docstring): the stages in their order."""
         clock = self._stage_clock
         t0 = clock() if clock else 0.0
         out = self.out
@@ -364,8 +364,34 @@ class DpController:
         if requests:  # (most cycles have none)
             self._apply_requests(t_s, requests)
         self.monitor.feedback(feedback)
+        hub = self._hub_stage(t_s, measurements)
+        t1 = clock() if clock else 0.0
+        self._estimator_stage(t_s, hub)
+        t2 = clock() if clock else 0.0
+        self._update_mode(t_s, hub)
+        if requests or out.rejected_requests or self._request_refused_t is not None:
+            self._report_requests(t_s, requests)
+        rudder_command = self._control_stage(t_s, dt)
+        self._wave_band_stage()
+        t3 = clock() if clock else 0.0
+        # thruster health and allocation
+        available = self.monitor.update(t_s, dt, out.thrust_n)
+        if self._insufficient_for is not None:
+            self._clear_insufficient(t_s)
+        self._allocate(dt, available, rudder_command)
+        t4 = clock() if clock else 0.0
+        self._supervision_stage(t_s)
+        if clock:
+            t5 = clock()
+            self.stage_us.update(hub=(t1 - t0) * 1e6, estimator=(t2 - t1) * 1e6, control=(t3 - t2) * 1e6,
+                                 allocation=(t4 - t3) * 1e6, finish=(t5 - t4) * 1e6)
+        out.mode = self.mode
+        out.setpoint_n[:] = self.setpoint_n
+        return out
 
-        # --- sensor hub, against the estimator's prediction
+    def _hub_stage(self, t_s: float, measurements: Sequence[Measurement]) -> HubOutput:
+        """The sensor hub's tests and fusion of this period's measurements, against the estimator's prediction."""
+        out = self.out
         predicted = variance = velocity_n = None
         if self._estimator_ready:
             predicted_n, variance_n = self.estimator.predicted_measurement()
@@ -382,9 +408,10 @@ class DpController:
                 velocity_n = (c * u - s * v, s * u + c * v, r)
         hub = self.hub.update(t_s, measurements, predicted, variance, velocity_n)
         out.hub = hub
-        t1 = clock() if clock else 0.0
+        return hub
 
-        # --- estimator
+    def _estimator_stage(self, t_s: float, hub: HubOutput) -> None:
+        """Start the estimator on the first fix of both kinds, re-initialise it on a hub reset, then step it."""
         y = self._y_n  # refilled in place: every estimator and the reference model copy what they keep of it
         y[:] = hub.y_n
         if not self._estimator_ready:
@@ -399,66 +426,61 @@ class DpController:
                 self._accel_ff_n = None
         if self._estimator_ready:
             self._update_force_input()
-            estimate = self.estimator.step(y, self._tau_input_b, hub.measured)
-            out.estimate = estimate
-        t2 = clock() if clock else 0.0
+            self.out.estimate = self.estimator.step(y, self._tau_input_b, hub.measured)
 
-        # --- modes and fall-backs
-        self._update_mode(t_s, hub)
-        if requests or out.rejected_requests or self._request_refused_t is not None:
-            self._report_requests(t_s, requests)
-
-        # --- guidance and control
+    def _control_stage(self, t_s: float, dt: float) -> float | None:
+        """Guidance and control: the commanded force in ``out.tau_b``; returns the rudder command of a controller
+        that steers with the rudder (None otherwise)."""
+        out = self.out
         tau = out.tau_b
         out.mrac = None
-        rudder_command: float | None = None
-        if self.mode is Mode.STANDBY or out.estimate is None:
+        estimate = out.estimate
+        if self.mode is Mode.STANDBY or estimate is None:
             out.reference = None
             tau[:] = 0.0
+            return None
+        setpoint = self.setpoint_n
+        if self.mode is Mode.AUTO_HEADING:
+            target = np.array([estimate.eta_hat_n[0], estimate.eta_hat_n[1], setpoint[2]])
         else:
-            estimate = out.estimate
-            setpoint = self.setpoint_n
-            if self.mode is Mode.AUTO_HEADING:
-                target = np.array([estimate.eta_hat_n[0], estimate.eta_hat_n[1], setpoint[2]])
-            else:
-                target = setpoint
-            reference = self._jerk_limited(dt, self.reference_model.step(dt, target))
-            out.reference = reference
-            dofs = HEADING_ONLY if self.mode is Mode.AUTO_HEADING else ALL_DOFS
-            control = self.controller.step(dt, estimate.eta_hat_n, estimate.nu_hat_b, estimate.bias_hat_b,
-                                           reference, dof_enabled=dofs)
-            tau[:] = control.tau_b
-            rudder_command = control.rudder_rad
-            parameters = control.parameters
-            if parameters is not None:
-                # the controller builds a new dict every step: kept as it is (another mapping is copied)
-                out.mrac = parameters if type(parameters) is dict else dict(parameters)
-            if self._mrac is not None and self._mrac.adapting:
-                self._supervise(self._mrac, t_s)
-            if self._mass_adaptive is not None and self._mrac is not None and not any(self._mrac.excited):
-                # only when â₂ changed (it is held between moves): saves an array and the filter's
-                # ratio update on most steps; the same values give the same ratio
-                mass = self._mrac.mass_hat_floats
-                if mass != self._mass_sent:
-                    self._mass_adaptive.set_mass_estimate(np.array(mass))
-                    self._mass_sent = mass
+            target = setpoint
+        reference = self._jerk_limited(dt, self.reference_model.step(dt, target))
+        out.reference = reference
+        dofs = HEADING_ONLY if self.mode is Mode.AUTO_HEADING else ALL_DOFS
+        control = self.controller.step(dt, estimate.eta_hat_n, estimate.nu_hat_b, estimate.bias_hat_b,
+                                       reference, dof_enabled=dofs)
+        tau[:] = control.tau_b
+        parameters = control.parameters
+        if parameters is not None:
+            # the controller builds a new dict every step: kept as it is (another mapping is copied)
+            out.mrac = parameters if type(parameters) is dict else dict(parameters)
+        if self._mrac is not None and self._mrac.adapting:
+            self._supervise(self._mrac, t_s)
+        if self._mass_adaptive is not None and self._mrac is not None and not any(self._mrac.excited):
+            # only when â₂ changed (it is held between moves): saves an array and the filter's
+            # ratio update on most steps; the same values give the same ratio
+            mass = self._mrac.mass_hat_floats
+            if mass != self._mass_sent:
+                self._mass_adaptive.set_mass_estimate(np.array(mass))
+                self._mass_sent = mass
+        return control.rudder_rad
+
+    def _wave_band_stage(self) -> None:
+        """The wave-band meter of the commanded force (status ``wave_band``), reset in standby."""
         meter = self.wave_band
-        if meter is not None:
-            if self.mode is Mode.STANDBY or out.estimate is None:
-                if meter.steps:
-                    meter.reset()
-            else:
-                meter.follow_peak(out.estimate.omega_hat_rad_s)
-                meter.update(tau, out.estimate.eta_hat_n)
-        t3 = clock() if clock else 0.0
+        if meter is None:
+            return
+        estimate = self.out.estimate
+        if self.mode is Mode.STANDBY or estimate is None:
+            if meter.steps:
+                meter.reset()
+        else:
+            meter.follow_peak(estimate.omega_hat_rad_s)
+            meter.update(self.out.tau_b, estimate.eta_hat_n)
 
-        # --- thruster health and allocation
-        available = self.monitor.update(t_s, dt, out.thrust_n)
-        if self._insufficient_for is not None:
-            self._clear_insufficient(t_s)
-        self._allocate(dt, available, rudder_command)
-        t4 = clock() if clock else 0.0
-
+    def _supervision_stage(self, t_s: float) -> None:
+        """After the allocation: the controller told what was achieved, the capability and deviation alarms."""
+        out = self.out
         if self.mode is not Mode.STANDBY:
             self.controller.notify_achieved(out.tau_achieved_b)
         self._capability_alarm(t_s)
@@ -473,13 +495,6 @@ class DpController:
             tracked[1] = mrac["ref_model_east_m"]
             tracked[2] = mrac["ref_model_heading_rad"]
         self.deviation.update(t_s, self.mode.value, None if estimate is None else estimate.eta_hat_n, tracked)
-        if clock:
-            t5 = clock()
-            self.stage_us.update(hub=(t1 - t0) * 1e6, estimator=(t2 - t1) * 1e6, control=(t3 - t2) * 1e6,
-                                 allocation=(t4 - t3) * 1e6, finish=(t5 - t4) * 1e6)
-        out.mode = self.mode
-        out.setpoint_n[:] = self.setpoint_n
-        return out
 
     def _jerk_limited(self, dt: float, reference: Reference) -> Reference:
         """The reference with its acceleration rate-limited to what the drives can follow.
