@@ -150,7 +150,9 @@ def prepare(scenario_path: Path, run_dir: Path, *, realtime: bool = False,
         tls_dir = (run_dir / "tls").resolve()
         init_ca(tls_dir, "demo", overwrite=True)
         for name, roles in DEMO_IDENTITIES.items():
-            issue(tls_dir, "+".join(roles), name, days=30)
+            # (a year: a certificate within EXPIRY_WARNING_DAYS of its end raises zenoh.certificate_expiring, which
+            # a fresh demo would show as its one alarm)
+            issue(tls_dir, "+".join(roles), name, days=365)
         zenoh_section.update(tls={"dir": str(tls_dir), "identity": "dp"},
                              identities={name: list(roles) for name, roles in DEMO_IDENTITIES.items()})
     controller = dict(scenario.get("controller") or {})
