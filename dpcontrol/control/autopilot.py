@@ -225,6 +225,11 @@ class HeadingAutopilot:
         return AutopilotOutput(rudder_rad=rudder, rudder_demand_rad=demand, tau_n_nm=tau,
                                heading_error_rad=psi_err, limited=limited)
 
+    @property
+    def rudder_rad(self) -> float:
+        """The last rudder command [rad] (where the rate limit continues from)."""
+        return self._rudder
+
     def reset(self, rudder_rad: float = 0.0) -> None:
         """Clear the integrator; start the rate limit from ``rudder_rad``."""
         self._integral = 0.0
@@ -285,8 +290,8 @@ class AutopilotController:
 
     def __init__(self, config: AutopilotConfig) -> None:
         self.pilot = HeadingAutopilot(config)
-        self._out = np.zeros(9)  # tau_b, error_b, velocity_error_b: the views handed out each step
-        self._rudder_rad = 0.0  # the last rudder command [rad] (the rate limit starts there after a reset)
+        # tau_b, error_b, velocity_error_b: the views handed out each step (only the yaw entries are ever set)
+        self._out = np.zeros(9)
 
     @property
     def config(self) -> AutopilotConfig:
@@ -301,9 +306,7 @@ class AutopilotController:
                                 r_d_radps=r_d, r_dot_d_radps2=float(reference.eta_ddot_d_n[2]),
                                 tau_wind_n_nm=None if tau_wind_ff_b is None else float(tau_wind_ff_b[2]),
                                 tau_bias_n_nm=None if bias_hat_b is None else float(bias_hat_b[2]))
-        self._rudder_rad = pilot.rudder_rad
         out = self._out
-        out[:] = 0.0
         out[2] = pilot.tau_n_nm
         out[5] = pilot.heading_error_rad
         out[8] = float(nu_hat_b[2]) - r_d
@@ -314,11 +317,10 @@ class AutopilotController:
 
     def reset(self) -> None:
         """Clear the integrator (a new engagement); the rate limit starts from the last rudder command."""
-        self.pilot.reset(self._rudder_rad)
+        self.pilot.reset(self.pilot.rudder_rad)
 
     def state_dict(self) -> dict[str, Any]:
         return self.pilot.state_dict()
 
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
         self.pilot.load_state_dict(state)
-        self._rudder_rad = float(state["rudder_rad"])

@@ -15,15 +15,17 @@ from dpcontrol.models.vessels import VesselData
 ControlConfig = PidConfig | MracConfig | AutopilotConfig
 """A validated ``control:`` section of any kind."""
 
-#: Each controller kind: its configuration parser and the controller its configuration builds.
-_KINDS: dict[str, tuple[Callable[[object, VesselData, str], ControlConfig], Callable[[Any], PositionController]]] = {
-    "mrac": (mrac_config_from_mapping, MracController),
-    "pid": (pid_config_from_mapping, PidController),
-    "autopilot": (autopilot_config_from_mapping, AutopilotController),
+_Parser = Callable[[object, VesselData, str], ControlConfig]
+_Builder = Callable[[Any], PositionController]
+
+#: Each controller kind: its configuration parser, the configuration type and the controller it builds.
+_KINDS: dict[str, tuple[_Parser, type, _Builder]] = {
+    "mrac": (mrac_config_from_mapping, MracConfig, MracController),
+    "pid": (pid_config_from_mapping, PidConfig, PidController),
+    "autopilot": (autopilot_config_from_mapping, AutopilotConfig, AutopilotController),
 }
 CONTROL_KINDS: tuple[str, ...] = tuple(_KINDS)
-_CONTROLLERS: dict[type, Callable[[Any], PositionController]] = {
-    MracConfig: MracController, PidConfig: PidController, AutopilotConfig: AutopilotController}
+_CONTROLLERS = {config_type: controller for _, config_type, controller in _KINDS.values()}
 
 
 def control_config_from_mapping(value: object, vessel: VesselData, path: str = "control") -> ControlConfig:

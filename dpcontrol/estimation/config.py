@@ -56,7 +56,7 @@ damping matrices, so one rule serves a 1.3 m model (CyberShip II) and a 260 m ta
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, fields
 from typing import Any
 
@@ -408,7 +408,8 @@ class WaveFilterConfig:
     @staticmethod
     def from_options(mass_matrix: np.ndarray, damping_matrix: np.ndarray, sample_time_s: float, *, kind: str,
                      omegas_rad_s: Sequence[float], zeta: float, options: Mapping[str, Any] | None = None,
-                     length_m: float | None = None, path: str = "estimator") -> WaveFilterConfig:
+                     length_m: float | None = None, path: str = "estimator",
+                     section_keys: Iterable[str] = ()) -> WaveFilterConfig:
         """Build from the runtime's estimator settings; errors carry ``path`` + the key.
 
         Parameters
@@ -425,6 +426,9 @@ class WaveFilterConfig:
             Vessel length for the default tuning (an ``options`` entry wins).
         path : str
             Key path of the section, for error messages.
+        section_keys : iterable of str
+            The section's keys the caller read itself (its frequency key, ``zeta``): listed with this class's
+            fields when a typo is refused.
 
         Raises
         ------
@@ -442,9 +446,8 @@ class WaveFilterConfig:
                 if key in ("forgetting_time_s", "lf_excess_limit") and value in ("inf", ".inf"):
                     value = math.inf
                 values[key] = tuple(value) if isinstance(value, list) else value
-        # (only the keys present were read: a typo is told every key of the section, the runtime's among them)
-        frequency = {"mmae": ("omegas_rad_s",), "raw": ()}.get(kind, ("omega0_rad_s",))
-        section.finish(also_valid=known | {"zeta", *frequency})
+        # (only the keys present were read: a typo is told every key of the section, the caller's among them)
+        section.finish(also_valid=known | set(section_keys))
         try:
             return WaveFilterConfig(mass_matrix=mass_matrix, damping_matrix=damping_matrix,
                                     sample_time_s=sample_time_s, kind=kind, omegas_rad_s=tuple(omegas_rad_s),

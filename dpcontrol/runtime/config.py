@@ -384,7 +384,8 @@ def _parse_estimator(section: Section, vessel: VesselData, rate_hz: float,
         extra["heading_noise_std_rad"] = min(heading)
     wave_filter = WaveFilterConfig.from_options(
         vessel.mass_matrix, vessel.damping_matrix, 1.0 / rate_hz, kind=kind, omegas_rad_s=omegas or (0.8,),
-        zeta=zeta, options=extra, length_m=vessel.length_m, path=section.path)
+        zeta=zeta, options=extra, length_m=vessel.length_m, path=section.path,
+        section_keys=(omega_key, "zeta") if omegas else ("zeta",))
     return EstimatorSettings(kind, wave_filter, {}, tuple(notices))
 
 

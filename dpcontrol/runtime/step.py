@@ -162,6 +162,10 @@ class DpController:
         # An adapting MRAC with a DP wave filter: the filter's model inertia follows the MRAC's mass estimate
         # between set-point moves (see MassAdaptiveEstimator: on M₀ alone the filter misleads the MRAC).
         self._mass_adaptive: MassAdaptiveEstimator | None = None
+        # With every position reference lost: after how long [s], which fall-back (see _position_loss)
+        fb = config.fallback
+        self._position_loss_rule = (fb.dead_reckoning_limit_s, fb.position_loss) if self.estimator.dead_reckons \
+            else (0.0, "hold_heading" if fb.position_loss == "dead_reckoning" else fb.position_loss)
         # MRAC supervision (_supervise): an estimate on a projection bound stops the adaptation
         self._mrac = self.controller.mass_adaptation
         if self._mrac is not None and self._mrac.adapting and config.estimator.kind in WAVE_FILTER_KINDS:
@@ -727,12 +731,10 @@ class DpController:
         An estimator without a vessel model (``dead_reckons`` False) only extrapolates the last velocity:
         holding position on it pushes against an error that exists only in the estimate (the Blue Lady 17 m
         off in a 90 s GNSS outage). Without a model there is no dead reckoning: the fall-back comes at once,
-        and ``dead_reckoning`` means keeping the heading with no surge and sway force (``hold_heading``).
+        and ``dead_reckoning`` means keeping the heading with no surge and sway force (``hold_heading``); the
+        rule is resolved once, in ``__init__``.
         """
-        fb = self.config.fallback
-        limit_s, action = fb.dead_reckoning_limit_s, fb.position_loss
-        if not self.estimator.dead_reckons:
-            limit_s, action = 0.0, "hold_heading" if action == "dead_reckoning" else action
+        limit_s, action = self._position_loss_rule
         if lost_s < limit_s:
             return wanted
         return self._loss_limit(t_s, "position", action, limit_s, wanted)
