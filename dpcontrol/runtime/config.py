@@ -238,7 +238,14 @@ def _parse_transport(section: Section) -> TransportConfig:
             raise ConfigError(f"{section.path}.variation_deg", "degrees in [-180, 180], east positive", variation)
         settings["variation_deg"] = variation
     else:
+        # (imported here: the MAVLink transport brings pymavlink, which other configurations never need)
+        from interfaces.mavlink.transport import parse_udpin  # noqa: PLC0415
+
         settings["url"] = section.string("url")
+        try:
+            parse_udpin(settings["url"])  # checked now, not when the daemon starts the reader
+        except ValueError as error:
+            raise ConfigError(f"{section.path}.url", str(error), settings["url"]) from None
         key_hex = section.raw("signing_key_hex", None)
         if key_hex is not None and (not isinstance(key_hex, str) or not re.fullmatch(r"[0-9a-fA-F]{64}", key_hex)):
             raise ConfigError(f"{section.path}.signing_key_hex", "64 hexadecimal digits (a 32-byte key)", key_hex)

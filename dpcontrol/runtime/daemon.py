@@ -1,9 +1,10 @@
 """``dpcontrol run``: the control loop on a monotonic clock, with real transports and Zenoh.
 
-Threads: each transport has its reader thread (interfaces/…/transport.py) that decodes and routes
-messages into :class:`InputPump`'s queue; Zenoh callbacks fill the setpoint inbox and the
-feedback slot. The loop thread (the main thread) owns everything else: at every deadline it drains
-the inputs, runs :meth:`DpController.step` (the same step the lockstep simulation runs), publishes
+Threads: each transport has its reader thread (interfaces/…/transport.py, chosen by
+:mod:`dpcontrol.runtime.transports`) that hands what it received, undecoded, to :class:`InputPump`'s queue
+(decoded and routed in the loop thread by :mod:`dpcontrol.runtime.ingest`); Zenoh callbacks fill the
+setpoint inbox and the feedback slot. The loop thread (the main thread) owns everything else: at every
+deadline it drains the inputs, runs :meth:`DpController.step` (the same step the lockstep simulation runs), publishes
 the command first, then estimate, MMAE, control and status, records, persists its state and — only
 then, from this healthy loop — sends ``WATCHDOG=1`` to systemd (docs/design.md §5: a side thread pinging
 the watchdog would keep a hung loop "alive").
@@ -23,12 +24,11 @@ from __future__ import annotations
 import collections
 import copy
 import dataclasses
+import functools
 import gc
-import itertools
 import logging
 import math
 import os
-import re
 import signal
 import threading
 import time
@@ -40,15 +40,17 @@ import numpy as np
 
 from dpcontrol.platform_info import HostStealWindow
 from dpcontrol.runtime.alarms import AlarmEvent, AlarmJournal, AlarmRegistry, CountAlarm, Severity
-from dpcontrol.runtime.config import DaemonConfig, TransportConfig, config_summary
+from dpcontrol.runtime.config import DaemonConfig, config_summary
 from dpcontrol.runtime.consequence import ConsequenceReport
-from dpcontrol.runtime.inputs import SensorRouter, link_source
+from dpcontrol.runtime.ingest import transport_inputs
+from dpcontrol.runtime.inputs import SensorRouter
 from dpcontrol.runtime.persist import BackgroundSaver, StateStore
 from dpcontrol.runtime.replica import ControllerReplica
 from dpcontrol.runtime.spin import DeadlineSpinner, loop_spinner
 from dpcontrol.runtime.step import RECENT_REQUESTS_S, DpController, Mode, StepOutput
 from dpcontrol.runtime.thrusters import ThrusterFeedback
 from dpcontrol.runtime.transport_health import InputHealth
+from dpcontrol.runtime.transports import InputEvent, RawInput, Reader, ReaderOptions, open_reader
 from interfaces.messages import LinkStatus, Measurement, RejectedInput
 from interfaces.recorder import Recorder, TopicSpec, default_topics
 from interfaces.systemd import SystemdNotifier
@@ -61,8 +63,8 @@ from interfaces.zenoh.security import EXPIRY_WARNING_DAYS, unprotected_endpoints
 log = logging.getLogger(__name__)
 
 TIMING_WINDOW = 2048
-# Inputs waiting for the loop: 12 s of a saturated 250 kbit/s NMEA 2000 bus (about 2000 frames/s, two
-# entries each), so nothing a sensor legitimately sends is ever dropped, while a flood on a UDP port
+# Raw inputs waiting for the loop: 25 s of a saturated 250 kbit/s NMEA 2000 bus (about 2000 frames/s), so
+# nothing a sensor legitimately sends is ever dropped, while a flood on a UDP port
 # or a loop stalled until the watchdog restarts it cannot grow the daemon's memory without bound.
 MAX_PENDING_INPUTS = 50_000
 # How long the start-up waits for the peers' liveliness tokens before declaring its own controller token [s]
@@ -126,12 +128,16 @@ def request_from_dict(data: dict[str, Any]) -> SetpointRequest:
 
 
 class InputPump:
-    """Starts the transport readers; collects routed measurements, rejects and link changes.
+    """Starts the transport readers; decodes, counts and routes what they received in the loop thread.
 
-    Everything arriving from reader threads goes through one deque (thread-safe appends); the loop
-    drains it once per cycle. At most ``max_pending`` measurements and frame counts wait in it: beyond
-    that, new ones are dropped and counted (:attr:`dropped`; the daemon raises ``inputs.overflow``),
-    link changes never are.
+    The readers (:mod:`dpcontrol.runtime.transports`, one per configured transport, chosen by configuration) hand
+    every raw input and link change, undecoded, to one deque from their threads (thread-safe appends); the loop
+    drains it once per cycle through the input stage (:mod:`dpcontrol.runtime.ingest`: the code the lockstep
+    simulation, replay and the bench run). At most ``max_pending`` raw inputs wait in it: beyond that, new ones
+    are dropped and counted (:attr:`dropped`; the daemon raises ``inputs.overflow``); link changes never are.
+
+    Every raw input gets a sequence number, recorded with it; every measurement is attributed the number of the
+    raw input it came from, and every cycle records which it consumed: replay is exact.
     """
 
     def __init__(self, config: DaemonConfig, clock: Callable[[], float], recorder: Recorder | None = None,
@@ -140,159 +146,88 @@ class InputPump:
         self.clock = clock
         self.router = SensorRouter(config.routes, config.transports)
         self.recorder = recorder
-        self._queue: collections.deque[Any] = collections.deque()
+        self._queue: collections.deque[tuple[str, InputEvent]] = collections.deque()
         self.max_pending = MAX_PENDING_INPUTS if max_pending is None else max_pending
         # inputs dropped because the queue was full, since the start (written by reader threads under
         # the lock: rare by construction, so the lock is off the normal path)
         self.dropped = 0
         self._dropped_lock = threading.Lock()
-        self._readers: list[Any] = []
-        # Every raw input gets a sequence number (recorded with it); each measurement carries the number
-        # of the raw input it came from, and every cycle records which it consumed: replay is exact.
-        self._counter = itertools.count(1)
-        self._last_raw_seq: dict[str, int] = {}
+        self._readers: list[Reader] = []
         # decoded / malformed frames per transport and link changes: the same code as the lockstep runs
         self.health = InputHealth([t.name for t in config.transports], self.router, config.hub.error_rate_alarm,
                                   config.hub.error_rate_window_s)
-        self._mav_pattern = re.compile(r"^mav:(\d+)/(\d+)/(.*)$")
-        self._n2k_pattern = re.compile(r"^n2k:(\d+)$")
-        self._n2k_decoders: dict[str, Any] = {}  # transport → its N2kDecoder (the NAMEs of the addresses)
+        self.stages = transport_inputs(config.transports, self.router, self.health, on_raw=self._numbered,
+                                       start_t_s=clock(), signing_time_s=time.time())
+        self._seq = 0  # the last raw input's number (loop thread only)
+        # where each raw input of the current drain starts in its measurement list: (index, number)
+        self._starts: list[tuple[int, int]] = []
+        self._out: list[Measurement] = []
 
     # ---------------------------------------------------------------- readers
     def start(self) -> None:
         for transport in self.config.transports:
+            name = transport.name
+            options = ReaderOptions(self.clock, request_address_claims=any(
+                route.source_name is not None for route in self.router.routes_of(name)))
             try:
-                self._readers.append(self._start(transport))
+                reader = open_reader(transport, functools.partial(self.received, name), options)
+                reader.start()
             except Exception as error:  # a missing device must not stop the controller (it reconnects)
-                log.error("transport %s could not start: %s", transport.name, error)
-                self._queue.append(LinkStatus(self.clock(), transport.name, False, f"start failed: {error}"))
+                log.error("transport %s could not start: %s", name, error)
+                self._queue.append((name, LinkStatus(self.clock(), name, False, f"start failed: {error}")))
+                continue
+            self._readers.append(reader)
 
-    def _start(self, transport: TransportConfig) -> Any:
-        name = transport.name
-        s = transport.settings
-        if transport.protocol == "nmea0183":
-            from interfaces.nmea0183.transport import SerialReader  # noqa: PLC0415
-
-            reader = SerialReader(s["port"], source=name, clock=self.clock, baudrate=s["baud"],
-                                  max_sentence_chars=s["max_sentence_chars"],
-                                  on_line=lambda line: self._nmea_line(name, line),
-                                  on_link=lambda status: self._queue.append(
-                                      LinkStatus(status.t_s, name, status.connected, status.detail)))
-            return reader.start()
-        if transport.protocol == "nmea2000":
-            from interfaces.nmea2000.codec import N2kDecoder  # noqa: PLC0415
-            from interfaces.nmea2000.gateways import GATEWAY_KINDS, GatewayConfig, N2kGatewayReader  # noqa: PLC0415
-            from interfaces.nmea2000.transport import CanBusConfig, N2kCanReader  # noqa: PLC0415
-
-            channel = "" if s["channel"] is None else str(s["channel"])
-            variation = s.get("variation_deg")
-            decoder = N2kDecoder(variation_rad=None if variation is None else math.radians(variation))
-            self._n2k_decoders[name] = decoder  # who claimed which address (60928), for routes by NAME
-            if s["interface"] in GATEWAY_KINDS:
-                return N2kGatewayReader(GatewayConfig(s["interface"], channel, dict(s.get("options") or {})),
-                                        lambda event: self._n2k_event(name, event), clock=self.clock,
-                                        decoder=decoder, deliver_raw=self.recorder is not None).start()
-            bus = CanBusConfig(s["interface"], channel or "can0", dict(s.get("options") or {}))
-            by_name = any(route.source_name is not None for route in self.router.routes_of(name))
-            return N2kCanReader(bus, lambda event: self._n2k_event(name, event), clock=self.clock,
-                                decoder=decoder, deliver_raw=self.recorder is not None,
-                                request_address_claims=by_name).start()
-        from interfaces.mavlink.codec import parse_signing_key  # noqa: PLC0415
-        from interfaces.mavlink.transport import MavlinkUdpReader  # noqa: PLC0415
-
-        match = re.fullmatch(r"udpin:([^:]+):(\d+)", s["url"])
-        if match is None:
-            raise ValueError(f"mavlink url {s['url']!r}: only udpin:HOST:PORT is supported")
-        key = parse_signing_key(s["signing_key_hex"]) if s.get("signing_key_hex") else None
-        return MavlinkUdpReader(lambda event: self._mav_event(name, event),
-                                bind=(match.group(1), int(match.group(2))), clock=self.clock, signing_key=key,
-                                heartbeat_timeout_s=s["heartbeat_timeout_s"], deliver_raw=self.recorder is not None,
-                                namer=lambda sys_id, comp, msg: f"mav:{sys_id}/{comp}/{msg}").start()
-
-    def _put(self, item: tuple[Any, ...]) -> None:
-        """Queue a measurement or a frame count for the loop, unless ``max_pending`` already wait."""
-        if len(self._queue) < self.max_pending:
-            self._queue.append(item)
+    def received(self, transport: str, event: InputEvent) -> None:
+        """A reader's event (any thread): queued for the loop, unless ``max_pending`` raw inputs already wait."""
+        if isinstance(event, LinkStatus) or len(self._queue) < self.max_pending:
+            self._queue.append((transport, event))
             return
         with self._dropped_lock:
             self.dropped += 1
 
-    def _nmea_line(self, transport: str, line: Any) -> None:
-        frame = line.frame
-        ok = frame.rejected is None
-        seq = next(self._counter)
-        self._put(("health", transport, line.t_s, None if ok else frame.rejected.reason))
-        if self.recorder is not None:
-            self.recorder.record_raw(transport, line.t_s, frame.raw, rejected=None if ok else frame.rejected.reason,
-                                     sentence=frame.sentence or None, seq=seq)
-        for message in frame.messages:
-            sensor = self.router.nmea0183(transport, frame.sentence, message)
-            if sensor is not None:
-                self._put((seq, Measurement(line.t_s, sensor, message)))
-
-    def _n2k_event(self, transport: str, event: Any) -> None:
-        if isinstance(event, Measurement):
-            match = self._n2k_pattern.match(event.source)
-            self._put(("health", transport, event.t_s, None))
-            if match is not None:
-                address = int(match.group(1))
-                decoder = self._n2k_decoders.get(transport)
-                sensor = self.router.nmea2000(transport, address, event.message,
-                                              None if decoder is None else decoder.name_of(address))
-                if sensor is not None:
-                    seq = self._last_raw_seq.get(transport, 0)
-                    self._put((seq, Measurement(event.t_s, sensor, event.message)))
-        elif isinstance(event, RejectedInput):
-            self._put(("health", transport, event.t_s, event.rejected.reason))
-            if self.recorder is not None:
-                self.recorder.record_raw(transport, event.t_s, event.rejected.raw, rejected=event.rejected.reason)
-        elif isinstance(event, LinkStatus):
-            self._queue.append(LinkStatus(event.t_s, transport, event.connected, event.detail))
-        elif self.recorder is not None:  # RawFrame: decoded right after, on this thread
-            seq = next(self._counter)
-            self._last_raw_seq[transport] = seq
-            self.recorder.record_raw(transport, event.t_s, event.data, can_id=event.can_id, seq=seq)
-
-    def _mav_event(self, transport: str, event: Any) -> None:
-        if isinstance(event, Measurement):
-            match = self._mav_pattern.match(event.source)
-            self._put(("health", transport, event.t_s, None))
-            if match is not None:
-                sensor = self.router.mavlink(transport, int(match.group(1)), match.group(3), event.message)
-                if sensor is not None:
-                    seq = self._last_raw_seq.get(transport, 0)
-                    self._put((seq, Measurement(event.t_s, sensor, event.message)))
-        elif isinstance(event, RejectedInput):
-            self._put(("health", transport, event.t_s, event.rejected.reason))
-            if self.recorder is not None:
-                self.recorder.record_raw(transport, event.t_s, event.rejected.raw, rejected=event.rejected.reason)
-        elif isinstance(event, LinkStatus):
-            # one autopilot's heartbeat (``mav:<system>/<component>/HEARTBEAT``) concerns only its sensors;
-            # "nothing heard at all" concerns the whole link
-            match = self._mav_pattern.match(event.source)
-            source = link_source(transport, int(match.group(1)) if match is not None else None)
-            self._queue.append(LinkStatus(event.t_s, source, event.connected, event.detail))
-        elif self.recorder is not None:  # RawPacket: decoded right after, on this thread
-            seq = next(self._counter)
-            self._last_raw_seq[transport] = seq
-            self.recorder.record_raw(transport, event.t_s, event.data, seq=seq)
-
     # ---------------------------------------------------------------- the loop side
-    def drain(self, measurements: list[Measurement], links: list[LinkStatus], sources: list[int]) -> None:
-        """Move everything received since the last call into the lists (in arrival order); ``sources``
-        gets the raw-input sequence number of each measurement."""
+    def drain(self, t_s: float, measurements: list[Measurement], links: list[LinkStatus], sources: list[int]) -> None:
+        """Decode and route everything received since the last call, in arrival order, into ``measurements``
+        (``sources``: the raw input number of each) and ``links``; then what time alone decides at ``t_s`` (s):
+        fast packets given up, MAVLink heartbeat timeouts."""
         queue = self._queue
-        health = self.health
+        stages = self.stages
+        first = len(measurements)
+        starts = self._starts
+        starts.clear()
+        self._out = measurements
         while queue:
-            item = queue.popleft()
-            if isinstance(item, LinkStatus):
-                links.append(item)
-            elif len(item) == 2:
-                sources.append(item[0])
-                measurements.append(item[1])
-            else:
-                _, transport, t_s, reason = item
-                health.count(transport, t_s, reason)
+            transport, event = queue.popleft()
+            stage = stages[transport]
+            if type(event) is RawInput:
+                stage.feed(event.t_s, event.data, measurements, can_id=event.can_id)
+            elif isinstance(event, LinkStatus):
+                stage.link_changed(event.t_s, event.connected, measurements)
+                links.append(LinkStatus(event.t_s, transport, event.connected, event.detail))
+            elif isinstance(event, RejectedInput):  # a gateway's framing could not read it: no raw input
+                self.health.count(transport, event.t_s, event.rejected.reason)
+                if self.recorder is not None:
+                    self.recorder.record_raw(transport, event.t_s, event.rejected.raw, rejected=event.rejected.reason)
+        for stage in stages.values():
+            stage.poll(t_s, links)
+        # each measurement's raw input: the last one that started at or before its place in the list
+        k = 0
+        seq = 0
+        for i in range(first, len(measurements)):
+            while k < len(starts) and starts[k][0] <= i:
+                seq = starts[k][1]
+                k += 1
+            sources.append(seq)
+
+    def _numbered(self, transport: str, t_s: float, data: bytes, rejected: str | None,
+                  fields: dict[str, Any]) -> None:
+        """The input stage shows a raw input (loop thread): number it, note where its measurements start,
+        record it."""
+        self._seq += 1
+        self._starts.append((len(self._out), self._seq))
+        if self.recorder is not None:
+            self.recorder.record_raw(transport, t_s, data, rejected=rejected, seq=self._seq, **fields)
 
     def close(self) -> None:
         for reader in self._readers:
@@ -749,7 +684,7 @@ class Daemon:
     def _cycle(self, t_s: float, measurements: list[Measurement], links: list[LinkStatus]) -> tuple[StepOutput, float]:
         assert self.pump is not None and self.node is not None
         sources: list[int] = []
-        self.pump.drain(measurements, links, sources)
+        self.pump.drain(t_s, measurements, links, sources)
         self._check_overflow(t_s)
         self._check_conflict(t_s)
         self.pump.health.apply_links(t_s, links, self.controller.hub, self.alarms)

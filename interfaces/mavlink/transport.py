@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import re
 import socket
 import threading
 import time
@@ -60,6 +61,26 @@ class RawPacket:
 
 
 MavEvent = Measurement | RawPacket | RejectedInput | LinkStatus
+
+_UDPIN = re.compile(r"udp(?:in)?:(\[[0-9A-Fa-f:.]+\]|[^:\[\]]+):(\d{1,5})")
+
+
+def parse_udpin(url: str) -> Address:
+    """The listen address of a ``udpin:HOST:PORT`` URL (the form of MAVLink connection strings; ``udp:`` means the
+    same there, pymavlink's ``mavutil``; an IPv6 host in brackets).
+
+    Raises
+    ------
+    ValueError
+        Another form (only listening on UDP is supported), or a port beyond 65535.
+    """
+    match = _UDPIN.fullmatch(url.strip())
+    if match is None:
+        raise ValueError(f"mavlink url {url!r}: only udpin:HOST:PORT (listening) is supported")
+    port = int(match.group(2))
+    if port > 65535:
+        raise ValueError(f"mavlink url {url!r}: port {port} beyond 65535")
+    return match.group(1).strip("[]"), port
 
 
 @dataclass(frozen=True, slots=True)
@@ -147,19 +168,24 @@ class MavlinkUdpReader:
     namer : callable, optional
         ``(system, component, message_name) -> name``, consulted after ``source_names`` (lets a router
         that only knows system IDs and message names name every sender).
+    decode : bool
+        Decode and watch heartbeats here. False: deliver only the datagrams (:class:`RawPacket`), for a caller
+        that decodes and monitors the links on its own thread (the daemon's input stage,
+        :mod:`dpcontrol.runtime.ingest`).
     """
 
-    def __init__(self, sink: Callable[[MavEvent], Any], *, bind: Address = ("127.0.0.1", 0),
+    def __init__(self, sink: Callable[[MavEvent], Any], *, bind: Address = ("127.0.0.1", 0),  # noqa: PLR0913 - the link's settings, keyword-only
                  clock: Clock = time.monotonic, unix_clock: Clock = time.time, signing_key: bytes | None = None,
                  heartbeat_timeout_s: float = 5.0, source_names: Mapping[tuple[Any, ...], str] | None = None,
                  deliver_raw: bool = False, poll_s: float = 0.1,
-                 namer: Callable[[int, int, str], str] | None = None) -> None:
+                 namer: Callable[[int, int, str], str] | None = None, decode: bool = True) -> None:
         if not poll_s > 0.0:
             raise ValueError("poll_s must be > 0")
         self.sink = sink
         self.clock = clock
         self.poll_s = poll_s
-        self.deliver_raw = deliver_raw
+        self.deliver_raw = deliver_raw or not decode
+        self.decode = decode
         self.decoder = MavlinkDecoder(signing_key, signing_time_s=unix_clock())
         self.counters: Counter[str] = Counter()
         self._names = dict(source_names or {})
@@ -216,7 +242,9 @@ class MavlinkUdpReader:
             return self._monitor.connected((system_id, component_id))
 
     def check_link(self) -> list[LinkStatus]:
-        """Run the heartbeat check at ``clock()`` now; emits and returns the changes."""
+        """Run the heartbeat check at ``clock()`` now; emits and returns the changes (none when not decoding)."""
+        if not self.decode:
+            return []
         with self._monitor_lock:
             return [self._link(change) for change in self._monitor.check(self.clock())]
 
@@ -280,6 +308,8 @@ class MavlinkUdpReader:
         self.counters["datagrams"] += 1
         if self.deliver_raw:
             self._emit(RawPacket(t_s, data, peer))
+        if not self.decode:
+            return
         try:
             results = self.decoder.decode_datagram(data)
         except Exception as error:  # the decoder is fuzzed not to raise; belt and braces for the thread

@@ -96,6 +96,12 @@ class SerialReader:
         Called with a :class:`ReceivedLine` for every frame (ok, ignored or rejected): the recorder's feed.
     on_link : callable, optional
         Called with a :class:`~interfaces.messages.LinkStatus` when the link is gained or lost.
+    on_data : callable, optional
+        Called with ``(t_s, data)`` for every read, the bytes as they arrived (any chunking).
+    decode : bool
+        Split and decode sentences here (``on_measurement``, ``on_line``, ``out_queue``). False: deliver only
+        the bytes (``on_data``) and the link changes, for a caller that decodes on its own thread (the
+        daemon's input stage, :mod:`dpcontrol.runtime.ingest`).
     out_queue : queue.Queue, optional
         Receives ``Measurement``, ``RejectedInput`` and ``LinkStatus`` items (``put_nowait``; when a
         bounded queue is full the item is dropped and ``counters["queue_full"]`` counts it).
@@ -124,6 +130,8 @@ class SerialReader:
         on_measurement: Callable[[Measurement], None] | None = None,
         on_line: Callable[[ReceivedLine], None] | None = None,
         on_link: Callable[[LinkStatus], None] | None = None,
+        on_data: Callable[[float, bytes], None] | None = None,
+        decode: bool = True,
         out_queue: queue.Queue | None = None,
         max_sentence_chars: int = DEFAULT_MAX_SENTENCE_CHARS,
         strict_validity: bool = True,
@@ -141,6 +149,8 @@ class SerialReader:
         self._on_measurement = on_measurement
         self._on_line = on_line
         self._on_link = on_link
+        self._on_data = on_data
+        self._decode = decode
         self._queue = out_queue
         self._read_timeout_s = read_timeout_s
         self._reconnect_initial_s = reconnect_initial_s
@@ -299,8 +309,11 @@ class SerialReader:
             with self._lock:
                 self._transport_counters["reads"] += 1
                 self._transport_counters["bytes_in"] += len(data)
-                frames = self._decoder.feed_frames(data)
-            self._deliver(t_s, frames)
+                frames = self._decoder.feed_frames(data) if self._decode else []
+            if self._on_data is not None:
+                self._call_data(t_s, data)
+            if frames:
+                self._deliver(t_s, frames)
 
     def _lost(self, detail: str) -> None:
         """The port went away: count it, report it, and drop the half line the decoder holds."""
@@ -351,6 +364,13 @@ class SerialReader:
             self._count("internal_errors")
             _log.exception("nmea0183 reader %s: clock failed", self.source)
         return self._last_t_s
+
+    def _call_data(self, t_s: float, data: bytes) -> None:
+        try:
+            self._on_data(t_s, data)  # type: ignore[misc]
+        except Exception:
+            self._count("callback_errors")
+            _log.exception("nmea0183 reader %s: data callback failed", self.source)
 
     def _call(self, callback: Callable[[_Item], None], item: _Item) -> None:
         try:

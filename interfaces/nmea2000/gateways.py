@@ -102,7 +102,7 @@ class N2kGatewayReader(N2kReaderThread):
     Parameters
     ----------
     gateway : GatewayConfig
-    sink, clock, source_names, decoder, deliver_raw, poll_s, backoff_s
+    sink, clock, source_names, decoder, deliver_raw, poll_s, backoff_s, decode
         As for :class:`~interfaces.nmea2000.transport.N2kCanReader`. ``RawFrame.data`` of an NGT-1
         message is its whole payload (the gateway has joined the fast-packet frames).
     """
@@ -113,9 +113,9 @@ class N2kGatewayReader(N2kReaderThread):
     def __init__(self, gateway: GatewayConfig, sink: Callable[[N2kEvent], Any], *, clock: Clock = time.monotonic,
                  source_names: Mapping[int, str] | None = None, decoder: N2kDecoder | None = None,
                  deliver_raw: bool = False, poll_s: float = 0.1,
-                 backoff_s: tuple[float, float] = (0.05, 2.0)) -> None:
+                 backoff_s: tuple[float, float] = (0.05, 2.0), decode: bool = True) -> None:
         super().__init__(gateway.name, sink, clock=clock, source_names=source_names, decoder=decoder,
-                         deliver_raw=deliver_raw, poll_s=poll_s, backoff_s=backoff_s)
+                         deliver_raw=deliver_raw, poll_s=poll_s, backoff_s=backoff_s, decode=decode)
         self.gateway = gateway
         self._link_handle: Any = None
         self._buffer = bytearray()
@@ -193,7 +193,8 @@ class N2kGatewayReader(N2kReaderThread):
                     if self.deliver_raw:
                         self._emit(RawFrame(t_s, canboat.can_id_compose(prio, pgn, source, destination),
                                             bytes(payload)))
-                    self._deliver(self.decoder.decode_message(pgn, source, payload, t_s), t_s)
+                    if self.decode:
+                        self._deliver(self.decoder.decode_message(pgn, source, payload, t_s), t_s)
                 elif event == "send":
                     with contextlib.suppress(Exception):
                         self._link_handle.write(value)
@@ -230,7 +231,8 @@ class N2kGatewayReader(N2kReaderThread):
         can_id = canboat.can_id_compose(prio, pgn, source, destination)
         if self.deliver_raw:
             self._emit(RawFrame(t_s, can_id, bytes(payload)))
-        self._deliver(self.decoder.decode_frame(can_id, bytes(payload), t_s), t_s)
+        if self.decode:
+            self._deliver(self.decoder.decode_frame(can_id, bytes(payload), t_s), t_s)
 
 
 # ----------------------------------------------------------------------------------------------

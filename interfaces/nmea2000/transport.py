@@ -178,14 +178,15 @@ class N2kReaderThread:
     def __init__(self, link_name: str, sink: Callable[[N2kEvent], Any], *, clock: Clock = time.monotonic,
                  source_names: Mapping[int, str] | None = None, decoder: N2kDecoder | None = None,
                  deliver_raw: bool = False, poll_s: float = 0.1,
-                 backoff_s: tuple[float, float] = (0.05, 2.0)) -> None:
+                 backoff_s: tuple[float, float] = (0.05, 2.0), decode: bool = True) -> None:
         if not poll_s > 0.0 or not 0.0 < backoff_s[0] <= backoff_s[1]:
             raise ValueError("poll_s must be > 0 and 0 < backoff_s[0] <= backoff_s[1]")
         self.link_name = link_name
         self.sink = sink
         self.clock = clock
         self.decoder = decoder or N2kDecoder()
-        self.deliver_raw = deliver_raw
+        self.deliver_raw = deliver_raw or not decode
+        self.decode = decode
         self.poll_s = poll_s
         self.backoff_s = backoff_s
         self.counters: Counter[str] = Counter()
@@ -308,7 +309,7 @@ class N2kReaderThread:
                 backoff = self.backoff_s[0]  # the link works
                 t_s = self.clock()
                 if item is None:
-                    if self.decoder.assembler.pending:
+                    if self.decode and self.decoder.assembler.pending:
                         self._deliver(self.decoder.expire(t_s), t_s)
                     continue
                 self._handle(item, t_s)
@@ -338,6 +339,9 @@ class N2kCanReader(N2kReaderThread):
     poll_s : float
         Longest blocking read [s]: bounds the close latency and the fast-packet expiry delay on
         an idle bus.
+    decode : bool
+        Decode here. False: deliver only the raw frames (and link changes), for a caller that decodes on its
+        own thread (the daemon's input stage, :mod:`dpcontrol.runtime.ingest`).
     backoff_s : (float, float)
         First and longest wait between reconnect attempts [s] (doubling).
     request_address_claims : bool
@@ -354,9 +358,10 @@ class N2kCanReader(N2kReaderThread):
     def __init__(self, bus: CanBusConfig, sink: Callable[[N2kEvent], Any], *, clock: Clock = time.monotonic,
                  source_names: Mapping[int, str] | None = None, decoder: N2kDecoder | None = None,
                  deliver_raw: bool = False, poll_s: float = 0.1,
-                 backoff_s: tuple[float, float] = (0.05, 2.0), request_address_claims: bool = False) -> None:
+                 backoff_s: tuple[float, float] = (0.05, 2.0), request_address_claims: bool = False,
+                 decode: bool = True) -> None:
         super().__init__(bus.name, sink, clock=clock, source_names=source_names, decoder=decoder,
-                         deliver_raw=deliver_raw, poll_s=poll_s, backoff_s=backoff_s)
+                         deliver_raw=deliver_raw, poll_s=poll_s, backoff_s=backoff_s, decode=decode)
         self.bus_config = bus
         self.request_address_claims = request_address_claims
         self._bus: can.BusABC | None = None
@@ -403,6 +408,8 @@ class N2kCanReader(N2kReaderThread):
         data = bytes(message.data)
         if self.deliver_raw:
             self._emit(RawFrame(t_s, message.arbitration_id, data))
+        if not self.decode:
+            return
         try:
             results = self.decoder.decode_frame(message.arbitration_id, data, t_s)
         except Exception as error:  # the decoder is fuzzed not to raise; belt and braces for the thread

@@ -23,7 +23,7 @@ import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from itertools import repeat
-from typing import Any, NamedTuple, cast
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -33,11 +33,11 @@ from dpcontrol.runtime.alarms import AlarmEvent
 from dpcontrol.runtime.config import DaemonConfig, SensorRoute, parse_config
 from dpcontrol.runtime.hub import SensorState
 from dpcontrol.runtime.ingest import Nmea2000Input, TransportInput, transport_inputs
-from dpcontrol.runtime.inputs import SensorRouter, link_source
+from dpcontrol.runtime.inputs import SensorRouter
 from dpcontrol.runtime.step import DpController, Mode, StepOutput
 from dpcontrol.runtime.thrusters import ThrusterFeedback
 from dpcontrol.runtime.transport_health import InputHealth
-from interfaces.mavlink.codec import HeartbeatMonitor, MavlinkEncoder
+from interfaces.mavlink.codec import MavlinkEncoder
 from interfaces.messages import LinkStatus, Measurement, PositionFix
 from sim_plant.encoding import DATE_DAYS_SINCE_1970, MavlinkSensorEncoder, N2kSensorEncoder, NmeaSensorEncoder
 from sim_plant.plant import Plant
@@ -217,7 +217,8 @@ class _Inputs:
                                   config.hub.error_rate_window_s)
         routes: dict[str, SensorRoute] = {r.sensor.name: r for r in config.routes}
         protocols = {t.name: t.protocol for t in config.transports}
-        self.stages = transport_inputs(config.transports, self.router, self.health, on_heartbeat=self._heartbeat)
+        # (heartbeats watched from t = 0, as the daemon watches them from its start)
+        self.stages = transport_inputs(config.transports, self.router, self.health, start_t_s=0.0)
         self.expiring = [stage for stage in self.stages.values() if isinstance(stage, Nmea2000Input)]
         self.paths: dict[str, _SensorPath] = {}
         self.last_valid: dict[str, list[Any]] = {}
@@ -226,7 +227,7 @@ class _Inputs:
         self.applied: list[dict[str, Any]] = []
         self._mav_encoders: dict[tuple[str, int], MavlinkEncoder] = {}
         self._silent_until: dict[tuple[str, int], float] = {}
-        self._monitors: dict[str, HeartbeatMonitor] = {}
+        self._heartbeat_watch: list[TransportInput] = []  # the MAVLink inputs of routed sensors
         self._next_heartbeat_s = 0.0
         self._seed = scenario.seed
         address = N2K_FIRST_ADDRESS
@@ -255,9 +256,8 @@ class _Inputs:
             self.paths[spec.name] = _SensorPath(route.transport, protocol,
                                                 "position" if isinstance(spec, GnssSpec) else "heading",
                                                 encoder, self.stages[route.transport], system_id)
-        for transport in {route.transport for route in config.routes if protocols[route.transport] == "mavlink"}:
-            timeout = float(next(t.settings for t in config.transports if t.name == transport)["heartbeat_timeout_s"])
-            self._monitors[transport] = HeartbeatMonitor(timeout, start_t_s=0.0)
+        watched = {route.transport for route in config.routes if protocols[route.transport] == "mavlink"}
+        self._heartbeat_watch.extend(self.stages[transport] for transport in sorted(watched))
         self.actions = protocol_fault_actions(scenario.faults)
 
     # ---------------------------------------------------------------- protocol faults
@@ -328,7 +328,7 @@ class _Inputs:
     def heartbeats(self, t: float) -> None:
         """The autopilots' 1 Hz HEARTBEAT (unless silenced) through the decoder into the heartbeat monitor;
         link changes go to :attr:`links`."""
-        if not self._monitors:
+        if not self._heartbeat_watch:
             return
         if t + 1e-9 >= self._next_heartbeat_s:
             self._next_heartbeat_s += HEARTBEAT_PERIOD_S
@@ -336,25 +336,13 @@ class _Inputs:
                 if transport in self.unplugged or t < self._silent_until.get((transport, system_id), -math.inf):
                     continue
                 self.stages[transport].feed(t, encoder.heartbeat(), None)
-        for transport, monitor in self._monitors.items():
-            for change in monitor.check(t):
-                # the monitor's keys are (system, component), as _heartbeat beats them
-                system = None if change.key is None else cast(tuple[int, int], change.key)[0]
-                self.links.append(LinkStatus(change.t_s, link_source(transport, system), change.connected,
-                                             change.detail))
+        for stage in self._heartbeat_watch:  # the daemon's heartbeat watch: systems heard, lost, never heard
+            stage.poll(t, self.links)
 
     def expire(self, t: float) -> None:
         """Fast packets left incomplete for too long become rejects (as the daemon's CAN reader does)."""
         for stage in self.expiring:
             stage.expire(t)
-
-    def _heartbeat(self, transport: str, system_id: int, component_id: int, t: float) -> None:
-        """A HEARTBEAT decoded by a MAVLink input: to the link monitor of its transport."""
-        monitor = self._monitors.get(transport)
-        if monitor is not None:
-            change = monitor.beat((system_id, component_id), t)
-            if change is not None:
-                self.links.append(LinkStatus(t, link_source(transport, system_id), True, change.detail))
 
     @property
     def rejected(self) -> int:
@@ -755,7 +743,7 @@ class LockstepSimulation:
                 inputs.links.clear()
                 if inputs.actions:
                     inputs.apply_faults(t, 0)  # unplug / replug / heartbeat silence before the samples
-                if inputs._monitors:  # (heartbeats, expiries and link changes exist on some transports only)
+                if inputs._heartbeat_watch:  # (heartbeats, expiries and link changes exist on some transports only)
                     inputs.heartbeats(t)
                 inputs.measurements(plant.sensor_samples(t), measurements)
                 if inputs.actions:

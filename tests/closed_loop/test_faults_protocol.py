@@ -20,9 +20,10 @@ from dpcontrol.runtime.daemon import InputPump
 from dpcontrol.runtime.hub import SensorHub, SensorState
 from dpcontrol.runtime.inputs import SensorRouter, link_alarm_code, link_source
 from dpcontrol.runtime.transport_health import MIN_BAD_FOR_ALARM, InputHealth, TransportHealth
-from interfaces.messages import Heading, LinkStatus, Measurement, Rejected, RejectedInput
-from interfaces.nmea0183 import Nmea0183Decoder, encode_hdt
-from interfaces.nmea0183.transport import ReceivedLine
+from dpcontrol.runtime.transports import RawInput
+from interfaces.mavlink.codec import MavlinkEncoder
+from interfaces.messages import Heading, LinkStatus, Measurement
+from interfaces.nmea0183 import encode_hdt
 from sim_plant.bench.lockstep import ProbedRun
 from sim_plant.bench.run import build_simulation
 from sim_plant.scenario import load_scenario
@@ -99,21 +100,24 @@ def test_the_daemon_input_pump_counts_and_links_through_the_shared_module() -> N
     config = parse_config(CONFIG)
     pump = InputPump(config, clock=lambda: 0.0)
     assert isinstance(pump.health, InputHealth)
-    decoder = Nmea0183Decoder()
     good = encode_hdt(Heading(0.7), "HE")
     bad_checksum = good[:-4] + (b"00" if good[-4:-2] != b"00" else b"11") + b"\r\n"
     for t, data in ((1.0, good), (1.1, bad_checksum), (1.2, b"\x00\x01garbage\r\n")):
-        for frame in decoder.feed_frames(data):
-            pump._nmea_line("serial", ReceivedLine(t, "serial", frame))
-    pump._mav_event("autopilot", RejectedInput(1.3, "mav:?", Rejected("checksum", "crc", b"")))
-    pump._mav_event("autopilot", LinkStatus(1.4, "mav:2/1/HEARTBEAT", False, "no heartbeat for 5.1 s"))
+        pump.received("serial", RawInput(t, data))
+    pump.received("autopilot", RawInput(1.3, b"\xfd\x09garbage that is no MAVLink packet"))
+    encoder = MavlinkEncoder(2, 1)
+    pump.received("autopilot", RawInput(1.35, encoder.heartbeat()))
     measurements: list[Measurement] = []
     links: list[LinkStatus] = []
-    pump.drain(measurements, links, [])
+    pump.drain(1.4, measurements, links, [])
     counters = pump.health.counters()
     assert counters["serial"]["decoded"] == 1 and counters["serial"]["rejected"] == 2
-    assert counters["autopilot"]["reason.checksum"] == 1
+    assert counters["autopilot"]["rejected"] >= 1
     assert [m.source for m in measurements] == ["gyro1"]
+    assert [(s.source, s.connected) for s in links] == [(link_source("autopilot", 2), True)]
+    timeout = next(t.settings for t in config.transports if t.name == "autopilot")["heartbeat_timeout_s"]
+    links.clear()
+    pump.drain(1.35 + timeout + 0.1, measurements, links, [])  # silence: the system's heartbeat is lost
     assert [(s.source, s.connected) for s in links] == [(link_source("autopilot", 2), False)]
     assert pump.router.sensors_on(links[0].source) == ["gyro2"]
 

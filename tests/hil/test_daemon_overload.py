@@ -13,11 +13,11 @@ import pytest
 from dpcontrol.runtime import daemon as daemon_module
 from dpcontrol.runtime.config import parse_config
 from dpcontrol.runtime.daemon import Daemon, InputPump, StepErrorLog
+from dpcontrol.runtime.transports import RawInput
 from interfaces.mavlink.codec import MavlinkEncoder
 from interfaces.mavlink.transport import MavlinkUdpSender
 from interfaces.messages import FixQuality, Heading, LinkStatus, Measurement, PositionFix
-from interfaces.nmea0183 import Nmea0183Decoder, encode_hdt
-from interfaces.nmea0183.transport import ReceivedLine
+from interfaces.nmea0183 import encode_hdt
 from interfaces.zenoh.loopback import free_tcp_port, free_udp_port
 
 SERIAL = {"vessel_id": "overload", "vessel": "cybership2",
@@ -28,19 +28,21 @@ SERIAL = {"vessel_id": "overload", "vessel": "cybership2",
 
 def test_the_input_queue_drops_beyond_its_bound_but_keeps_link_changes() -> None:
     pump = InputPump(parse_config(SERIAL), clock=lambda: 0.0, max_pending=10)
-    frame = next(iter(Nmea0183Decoder().feed_frames(encode_hdt(Heading(0.5), "HE"))))
-    for k in range(20):  # each line queues a frame count and a measurement: 40 items for 10 places
-        pump._nmea_line("serial0", ReceivedLine(0.1 * k, "serial0", frame))
-    pump._queue.append(LinkStatus(2.0, "serial0", False, "gone"))  # as the reader's on_link does
+    line = encode_hdt(Heading(0.5), "HE")
+    for k in range(20):  # one read per line, as the serial reader hands them: 20 raw inputs for 10 places
+        pump.received("serial0", RawInput(0.1 * k, line))
+    pump.received("serial0", LinkStatus(2.0, "serial0", False, "gone"))  # as the reader's on_link does
     measurements: list[Measurement] = []
     links: list[LinkStatus] = []
-    pump.drain(measurements, links, [])
-    assert pump.dropped == 30
-    assert len(measurements) == 5 and [m.t_s for m in measurements] == pytest.approx([0.0, 0.1, 0.2, 0.3, 0.4])
+    sources: list[int] = []
+    pump.drain(2.0, measurements, links, sources)
+    assert pump.dropped == 10
+    assert len(measurements) == 10 and [m.t_s for m in measurements] == pytest.approx([0.1 * k for k in range(10)])
+    assert sources == list(range(1, 11))  # each measurement names the raw input it came from
     assert [link.connected for link in links] == [False]
-    pump._nmea_line("serial0", ReceivedLine(3.0, "serial0", frame))  # room again after the drain
-    pump.drain(measurements, links, [])
-    assert pump.dropped == 30 and measurements[-1].t_s == 3.0
+    pump.received("serial0", RawInput(3.0, line))  # room again after the drain
+    pump.drain(3.0, measurements, links, sources)
+    assert pump.dropped == 10 and measurements[-1].t_s == 3.0 and sources[-1] == 11
 
 
 def test_a_udp_flood_beyond_the_bound_raises_inputs_overflow_and_control_goes_on(

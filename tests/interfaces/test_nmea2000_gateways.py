@@ -157,7 +157,7 @@ def test_the_daemon_reads_a_gateway_configured_like_a_can_bus() -> None:
             gateway.send(N2kEncoder(35).gnss_position(FIX) + N2kEncoder(36).vessel_heading(1.0, reference="magnetic"))
             measurements: list[Measurement] = []
             while len(measurements) < 2 and time.monotonic() < deadline:
-                pump.drain(measurements, [], [])
+                pump.drain(time.monotonic(), measurements, [], [])
                 time.sleep(0.02)
         finally:
             pump.close()

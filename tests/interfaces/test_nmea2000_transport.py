@@ -303,7 +303,7 @@ def test_a_sensor_configured_by_name_follows_its_device_to_a_new_address() -> No
         out: list[Measurement] = []
         end = time.monotonic() + deadline_s
         while time.monotonic() < end:
-            pump.drain(out, [], [])
+            pump.drain(time.monotonic(), out, [], [])
             time.sleep(0.02)
         return out
 

@@ -9,10 +9,10 @@ import pytest
 
 from dpcontrol.runtime.config import parse_config
 from dpcontrol.runtime.ingest import INPUTS, MavlinkInput, Nmea0183Input, Nmea2000Input, transport_inputs
-from dpcontrol.runtime.inputs import SensorRouter
+from dpcontrol.runtime.inputs import SensorRouter, link_source
 from dpcontrol.runtime.transport_health import InputHealth
 from interfaces.mavlink.codec import MavlinkEncoder
-from interfaces.messages import FixQuality, Heading, Measurement, PositionFix
+from interfaces.messages import FixQuality, Heading, LinkStatus, Measurement, PositionFix
 from interfaces.nmea0183 import encode_gga, encode_ths
 from interfaces.nmea2000.codec import N2kEncoder
 
@@ -40,9 +40,8 @@ def stages():
     config = _config()
     router = SensorRouter(config.routes, config.transports)
     health = InputHealth([t.name for t in config.transports], router, 0.2)
-    beats: list[tuple[str, int, int, float]] = []
-    inputs = transport_inputs(config.transports, router, health, on_heartbeat=lambda *b: beats.append(b))
-    return inputs, health, beats
+    inputs = transport_inputs(config.transports, router, health, start_t_s=0.0)
+    return inputs, health, None
 
 
 def test_each_protocol_gets_its_own_input_class(stages) -> None:
@@ -90,14 +89,61 @@ def test_an_incomplete_fast_packet_expires_as_a_counted_reject(stages) -> None:
     assert inputs["can"].rejected == 1 and out == []
 
 
-def test_mavlink_heartbeats_go_to_the_link_monitor_and_fixes_to_their_sensor(stages) -> None:
-    inputs, _, beats = stages
+def test_mavlink_heartbeats_are_watched_per_system_and_fixes_go_to_their_sensor(stages) -> None:
+    inputs, _, _ = stages
     encoder = MavlinkEncoder(3, 1)
     out: list[Measurement] = []
+    links: list[LinkStatus] = []
     inputs["mav"].feed(4.0, encoder.heartbeat(), out)
     inputs["mav"].feed(4.1, encoder.gps_raw_int(FIX, time_usec=1), out)
-    assert beats == [("mav", 3, 1, 4.0)]
+    inputs["mav"].poll(4.2, links)
     assert [m.source for m in out] == ["gnss3"]
+    assert [(link.source, link.connected) for link in links] == [(link_source("mav", 3), True)]
+    links.clear()
+    inputs["mav"].poll(4.0 + 5.0, links)  # within the default 5 s timeout: nothing
+    assert links == []
+    inputs["mav"].poll(4.0 + 5.2, links)
+    assert [(link.source, link.connected) for link in links] == [(link_source("mav", 3), False)]
+
+
+def test_a_mavlink_link_where_nothing_is_heard_is_reported_lost_once() -> None:
+    config = _config()
+    router = SensorRouter(config.routes, config.transports)
+    inputs = transport_inputs(config.transports, router, start_t_s=10.0)
+    links: list[LinkStatus] = []
+    for t in (12.0, 15.5, 20.0):
+        inputs["mav"].poll(t, links)
+    assert [(link.source, link.connected) for link in links] == [(link_source("mav", None), False)]
+    replay = transport_inputs(config.transports, router)  # no start time: heartbeats only counted
+    replay["mav"].poll(100.0, links)
+    assert len(links) == 1
+
+
+def test_every_raw_input_is_shown_before_its_measurements_with_the_decoders_verdict() -> None:
+    """The daemon numbers and records each raw input through this observer; a measurement belongs to the last
+    raw input shown before it was appended."""
+    config = _config()
+    router = SensorRouter(config.routes, config.transports)
+    out: list[Measurement] = []
+    seen: list[tuple[str, bytes, str | None, dict, int]] = []
+    inputs = transport_inputs(config.transports, router,
+                              on_raw=lambda transport, _t, data, rejected, fields: seen.append(
+                                  (transport, data, rejected, fields, len(out))))
+    good = encode_gga(FIX, "GP", 36000.0)
+    inputs["serial"].feed(1.0, good + b"$GPGGA,garbage*00\r\n" + good[:20], out)
+    assert [(t, r, f, n) for t, _d, r, f, n in seen] == [
+        ("serial", None, {"sentence": "GPGGA"}, 0), ("serial", "checksum", {"sentence": "GPGGA"}, 1)]
+    assert seen[0][1] == good.rstrip(b"\r\n")  # as the recorder keeps a sentence: without its terminator
+    inputs["serial"].link_changed(2.0, False, out)  # the half sentence of a lost line is given up, and shown
+    assert seen[-1][2] == "unterminated" and seen[-1][1] == good[:20]
+    seen.clear()
+    frame_id, data = N2kEncoder(41).position_rapid(FIX)[0]
+    inputs["can"].feed(3.0, data, out, can_id=frame_id)
+    inputs["mav"].feed(3.1, b"\xfd garbage", out)
+    assert [(t, r, f, n) for t, _d, r, f, n in seen] == [("can", None, {"can_id": frame_id}, 1),
+                                                        ("mav", seen[1][2], {}, 2)]
+    assert seen[1][2] is not None  # the datagram's rejection reason
+    assert [m.source for m in out] == ["gnss1", "gnss2"]
 
 
 def test_a_recorded_input_decodes_as_the_live_one(stages) -> None:
