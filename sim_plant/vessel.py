@@ -48,9 +48,9 @@ import math
 
 import numpy as np
 
+from dpbase.wind_loads import BlendermannCoefficients, blendermann_type
 from dpcontrol.models.vessels import VesselData
 from sim_plant.environment.rao import HullDimensions
-from sim_plant.environment.wind import BLENDERMANN_TYPES, WindCoefficients
 from sim_plant.kernels import (
     DP_MODEL,
     DP_PARAMETERS,
@@ -177,8 +177,8 @@ class DpVesselModel(_ModelBase):
         self.xg_m = xg
         self.mass_factor = factor
         self.hull = HullDimensions(base.length_m, max(base.beam_m, 1e-6), max(draft, 1e-6))
-        self.wind = WindCoefficients(cdt, bow, stern, delta, frontal, lateral, base.length_m,
-                                     self.extras.wind_centroid_frac * base.length_m)
+        self.wind = BlendermannCoefficients(cdt, bow, stern, delta, frontal, lateral, base.length_m,
+                                            self.extras.wind_centroid_frac * base.length_m)
         self.params = params
 
     @property
@@ -195,7 +195,7 @@ class DpVesselModel(_ModelBase):
 def _loading_values(vessel: VesselData, wind_type: str) -> np.ndarray:
     """What the loading of a DP model sets, as one array (layout :data:`sim_plant.kernels.LOADING_VALUES`)."""
     return np.concatenate(([vessel.iz_kgm2, vessel.xg_m, vessel.draft_m, vessel.frontal_wind_area_m2,
-                            vessel.lateral_wind_area_m2], BLENDERMANN_TYPES[wind_type],
+                            vessel.lateral_wind_area_m2], blendermann_type(wind_type),
                            np.ravel(vessel.added_mass_matrix), np.ravel(vessel.damping_matrix),
                            vessel.quadratic_damping))
 
@@ -243,10 +243,9 @@ class ManoeuvringVesselModel(_ModelBase):
         self.mass_kg = factor * dv.mass * half_rho * length**3
         self.mass_factor = factor
         self.hull = HullDimensions(length, self.vessel.beam_m, factor * self.vessel.draft_m)
-        cdt, bow, stern, delta = BLENDERMANN_TYPES[self.extras.wind_type]
-        self.wind = WindCoefficients(cdt, bow, stern, delta, self.vessel.frontal_wind_area_m2,
-                                     self.vessel.lateral_wind_area_m2, length,
-                                     self.extras.wind_centroid_frac * length)
+        self.wind = BlendermannCoefficients.of_type(self.extras.wind_type, self.vessel.frontal_wind_area_m2,
+                                                    self.vessel.lateral_wind_area_m2, length,
+                                                    self.extras.wind_centroid_frac * length)
         self.params = _manoeuvring_parameters(dv, length, half_rho, self.surge_speed_mps, (m22, m23, m32, m33))
 
     @property

@@ -15,7 +15,8 @@ with that H_s and ω_p = 2π/T_p (the standard's Level 1 sea; its cos² spreadin
 The table's current (0.75 m/s from Beaufort 3) is replaced by ``--current-mps`` (default 0.5 m/s).
 
 **Level 1** (static): the mean loads of the plant's own models on the vessel at rest at heading 0 —
-wind: the Blendermann coefficients of :mod:`sim_plant.environment.wind` (seed 002 eq. (18)) at γ = β;
+wind: the plant's wind force (:func:`sim_plant.environment.wind.wind_force_b`, the Blendermann law of
+:mod:`dpbase.wind_loads`, seed 002 eq. (18)) at γ_rw = −β (that law's angle is positive from port);
 waves: the mean of the plant's drift model (:mod:`sim_plant.environment.waves`), ρg·s ∫ R(ω)² S(ω) dω times
 the direction factors of :func:`~sim_plant.environment.rao.drift_direction_factors`, with Ursell's reflection
 coefficient R and the vessel's drift scale s (the expectation of the plant's Σ b_i²: the integral on 2000 bins);
@@ -60,6 +61,7 @@ from dpcontrol.runtime.config import CONTROLLER_SECTIONS, parse_config
 from sim_plant.campaign.spec import Run, run_key
 from sim_plant.environment.rao import drift_direction_factors, reflection_coefficient
 from sim_plant.environment.spectra import frequency_bins, wave_spectrum
+from sim_plant.environment.wind import wind_force_b
 from sim_plant.vessel import DpVesselModel
 
 log = logging.getLogger(__name__)
@@ -173,7 +175,7 @@ class StaticLoads:
 
     def wind_b(self, beta_rad: float, wind_mps: float) -> np.ndarray:
         speed = wind_mps / math.sqrt(self.scale)
-        return np.array(self.model.wind.force_b(speed, ssa(beta_rad)))
+        return np.array(wind_force_b(self.model.wind, speed, -ssa(beta_rad)))
 
     def drift_b(self, beta_rad: float, wind_mps: float) -> np.ndarray:
         hs, tp = sea_state_for_wind(wind_mps)

@@ -4,7 +4,7 @@ sums over wave and gust components are kernels of :mod:`sim_plant.kernels`).
 Modules: :mod:`.spectra` (JONSWAP / Pierson–Moskowitz, NORSOK gusts, sums of sinusoids),
 :mod:`.rao` (parametric motion RAOs and drift coefficients from the hull dimensions),
 :mod:`.waves` (sea states, cross-fades, WF motion and drift force), :mod:`.current`,
-:mod:`.wind` (Blendermann coefficients, gusts).
+:mod:`.wind` (gusts; the force by the shared law of :mod:`dpbase.wind_loads`).
 """
 
 from sim_plant.environment.current import CurrentModel
@@ -20,10 +20,9 @@ from sim_plant.environment.waves import (
     WaveSample,
     motion_peaks,
 )
-from sim_plant.environment.wind import BLENDERMANN_TYPES, WindCoefficients, WindModel
+from sim_plant.environment.wind import WindModel, wind_force_b
 
 __all__ = [
-    "BLENDERMANN_TYPES",
     "CALM",
     "NO_PEAKS",
     "SPECTRA",
@@ -35,11 +34,11 @@ __all__ = [
     "WaveEnvironment",
     "WaveField",
     "WaveSample",
-    "WindCoefficients",
     "WindModel",
     "motion_peaks",
     "motion_raos",
     "realise_waves",
     "reflection_coefficient",
     "wave_spectrum",
+    "wind_force_b",
 ]

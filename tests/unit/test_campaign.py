@@ -52,6 +52,7 @@ from sim_plant.campaign.spec import (
 from sim_plant.cli import main
 from sim_plant.environment.spectra import realise_waves
 from sim_plant.environment.waves import WaveField
+from sim_plant.environment.wind import RHO_AIR_KGPM3
 from sim_plant.vessel import DpVesselModel
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -303,7 +304,8 @@ def test_static_loads_are_the_plants_models() -> None:
                           beta, model.hull, vessel.water_density_kgpm3, model.extras.drift_scale)
         drifts.append(waves.mean_drift_b(0.0))
     assert np.mean(drifts, axis=0) == pytest.approx(loads.drift_b(beta, 15.0), rel=0.02)
-    assert loads.wind_b(beta, 15.0) == pytest.approx(model.wind.force_b(15.0, beta))
+    # β from starboard is γ_rw = −β in the wind law's convention (dpbase.wind_loads)
+    assert loads.wind_b(beta, 15.0) == pytest.approx(model.wind.force_b(15.0, -beta, RHO_AIR_KGPM3))
     head = StaticLoads(vessel, current_mps=0.5).current_b(0.0)
     assert head[0] < 0 and abs(head[1]) < 1e-9 * abs(head[0])  # a head current pushes astern, nothing abeam
 

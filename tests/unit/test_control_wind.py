@@ -10,13 +10,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dpbase.schema import ConfigError
+from dpbase.wind_loads import blendermann_type
 from dpcontrol.control import (
     BlendermannCoefficients,
     TabulatedCoefficients,
     WindFeedforward,
     wind_feedforward_from_mapping,
 )
-from dpcontrol.control.wind import BLENDERMANN_TYPES, RHO_AIR_KGPM3, default_wind_coefficients
+from dpcontrol.control.wind import RHO_AIR_KGPM3, default_wind_coefficients
 from dpcontrol.models.vessels import BUILTIN_VESSELS, SUPPLY
 
 WIND = WindFeedforward.for_vessel(SUPPLY)
@@ -25,7 +26,7 @@ WIND = WindFeedforward.for_vessel(SUPPLY)
 def test_head_wind_pushes_astern_with_the_frontal_area() -> None:
     assert WIND is not None
     tau = WIND.force_b(15.0, 0.0, 0.0)  # wind from the north, vessel heading north
-    cdl_head = BLENDERMANN_TYPES["offshore_supply"][1]
+    cdl_head = blendermann_type("offshore_supply").cd_longitudinal_head
     expected = -0.5 * RHO_AIR_KGPM3 * 15.0**2 * SUPPLY.frontal_wind_area_m2 * cdl_head
     assert tau[0] == pytest.approx(expected)
     assert tau[1] == pytest.approx(0.0, abs=1e-9) and tau[2] == pytest.approx(0.0, abs=1e-6)
@@ -37,7 +38,7 @@ def test_beam_winds_push_to_leeward_and_the_heading_rotates_the_load() -> None:
     starboard = WIND.force_b(10.0, math.radians(90.0), 0.0)  # from the east: on the starboard side
     assert starboard[1] < 0.0  # pushed to port
     assert starboard[1] == pytest.approx(-0.5 * RHO_AIR_KGPM3 * 100.0 * SUPPLY.lateral_wind_area_m2
-                                         * BLENDERMANN_TYPES["offshore_supply"][0])
+                                         * blendermann_type("offshore_supply").cd_transverse)
     port = WIND.force_b(10.0, math.radians(-90.0), 0.0)
     np.testing.assert_allclose(port, -starboard, atol=1e-6)
     # wind from the north on a vessel heading east comes from port: pushed to starboard
@@ -93,7 +94,9 @@ def test_every_built_in_vessel_has_coefficients() -> None:
         cx, cy, _ = coefficients.coefficients(0.0)
         assert cx < 0.0 and cy == pytest.approx(0.0)
     with pytest.raises(ValueError):
-        BlendermannCoefficients(0.9, 0.5, 0.5, 0.5, 0.0, 1.0, 1.0)
+        BlendermannCoefficients(0.9, 0.5, 0.5, 0.5, -1.0, 1.0, 1.0)
+    with pytest.raises(ValueError):  # the feed-forward needs both areas (the shared law allows 0, the plant uses it)
+        WindFeedforward(BlendermannCoefficients(0.9, 0.5, 0.5, 0.5, 0.0, 1.0, 1.0), 0.0, 1.0, 1.0)
 
 
 def test_wind_feedforward_config() -> None:

@@ -9,11 +9,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from dpbase.wind_loads import BlendermannCoefficients
 from sim_plant.environment.current import CurrentModel
 from sim_plant.environment.spectra import gauss_markov_process, norsok_wind_spectrum_per_hz
-from sim_plant.environment.wind import RHO_AIR_KGPM3, WindCoefficients, WindModel
+from sim_plant.environment.wind import RHO_AIR_KGPM3, WindModel
 
-SUPPLY_WIND = WindCoefficients.of_type("offshore_supply_vessel", 280.0, 720.0, 76.2, 0.15 * 76.2)
+SUPPLY_WIND = BlendermannCoefficients.of_type("offshore_supply_vessel", 280.0, 720.0, 76.2, 0.15 * 76.2)
 
 
 def test_wind_coefficient_signs() -> None:
@@ -21,11 +22,12 @@ def test_wind_coefficient_signs() -> None:
     assert cx == pytest.approx(-0.55) and cy == pytest.approx(0.0) and cn == pytest.approx(0.0)
     cx, cy, _ = SUPPLY_WIND.coefficients(math.pi)
     assert cx == pytest.approx(0.80)  # from astern: stern coefficient, pushes ahead
-    _, cy, cn = SUPPLY_WIND.coefficients(math.pi / 2.0)
+    # γ_rw of dpbase.wind_loads: positive from port
+    _, cy, cn = SUPPLY_WIND.coefficients(-math.pi / 2.0)
     assert cy == pytest.approx(-0.90)  # from starboard: pushed to port
-    _, cy, cn = SUPPLY_WIND.coefficients(math.radians(30.0))
+    _, cy, cn = SUPPLY_WIND.coefficients(math.radians(-30.0))
     assert cy < 0.0 and cn < 0.0  # from the starboard bow: the bow is pushed to port
-    _, cy, cn = SUPPLY_WIND.coefficients(math.radians(150.0))
+    _, cy, cn = SUPPLY_WIND.coefficients(math.radians(-150.0))
     assert cy < 0.0 and cn > 0.0  # from the starboard quarter: the stern is pushed to port
 
 
