@@ -10,7 +10,7 @@ allocation, command and status, with full-precision noisy numbers as the filters
   competes for the GIL as it would in the daemon — and the whole process's CPU use meanwhile;
 * ``burst``: the same cycles back to back (no pacing) — the writer's throughput limit and the
   drops when the queue is outrun;
-* ``state``: the persisted state for a bumpless restart (:mod:`dpcontrol.runtime.persist`) — an
+* ``state``: the persisted state for a bumpless restart (:mod:`dpcontrol.service.persist`) — an
   8-model × 15-state bank with full covariances and MRAC parameters: serialising it (what
   ``BackgroundSaver.submit`` costs the loop) and a synchronous atomic save with fsync (what the
   helper thread spends);
@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from dpcontrol.runtime.persist import BackgroundSaver, StateStore
+from dpcontrol.service.persist import BackgroundSaver, StateStore
 from interfaces.recorder import Recorder, RecorderSettings, list_log_files
 
 RATE_HZ = 10.0

@@ -39,7 +39,7 @@ def _configure_logging(verbose: bool) -> None:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from dpcontrol.runtime.config import load_config  # noqa: PLC0415
-    from dpcontrol.runtime.daemon import Daemon  # noqa: PLC0415
+    from dpcontrol.service.daemon import Daemon  # noqa: PLC0415
     from interfaces.zenoh.security import PkiError, check_security  # noqa: PLC0415
 
     _configure_logging(args.verbose)

@@ -23,11 +23,11 @@ import yaml
 from dpbase.yamlfile import load_yaml
 from dpcontrol.logtools import read_config, read_records
 from dpcontrol.runtime.config import DaemonConfig, load_config
-from dpcontrol.runtime.daemon import request_from_dict
 from dpcontrol.runtime.ingest import transport_inputs
 from dpcontrol.runtime.inputs import SensorRouter
 from dpcontrol.runtime.step import DpController
 from dpcontrol.runtime.thrusters import ThrusterFeedback
+from dpcontrol.service.daemon import request_from_dict
 from interfaces.messages import Measurement
 
 

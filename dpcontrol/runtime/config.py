@@ -132,7 +132,7 @@ class RealtimeSettings:
     and Zenoh's threads stay at normal priority, so the loop preempts them (and any other process)
     the moment its deadline comes; None keeps the normal scheduler. ``cpus``: the CPUs the loop
     thread may run on (empty: any). ``spin_s``: the loop sleeps until this long before each
-    deadline and spins the rest, with the GIL released (:mod:`dpcontrol.runtime.spin`), so the
+    deadline and spins the rest, with the GIL released (:mod:`dpcontrol.service.spin`), so the
     cycle starts on time instead of a wake-up latency late [s]; 0 sleeps to the deadline.
     """
 
@@ -144,7 +144,7 @@ class RealtimeSettings:
 @dataclass(frozen=True)
 class ReplicaSettings:
     """The controller replica (``loop.replica_check``, ``loop.replica_lead_ms``;
-    :mod:`dpcontrol.runtime.replica`).
+    :mod:`dpcontrol.service.replica`).
 
     ``enabled``: keep a second controller one cycle behind that recomputes every command and
     compares. ``lead_s``: how long before each deadline it runs [s] (it also warms the caches for

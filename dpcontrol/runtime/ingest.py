@@ -4,7 +4,7 @@ One :class:`TransportInput` per configured transport, chosen by its protocol fro
 python-can chooses ``Bus(interface=...)``), holds that transport's decoder and feeds what it decodes through the
 :class:`~dpcontrol.runtime.inputs.SensorRouter`: every frame counted in the transport's health (decoded, or
 rejected with its reason), every routed message appended as a :class:`~interfaces.messages.Measurement` to the
-caller's list. The daemon (the bytes its transport readers deliver, :mod:`dpcontrol.runtime.transports`), the
+caller's list. The daemon (the bytes its transport readers deliver, :mod:`dpcontrol.service.transports`), the
 lockstep simulation (the plant's encoded bytes), ``dpcontrol replay`` (the recorded raw inputs) and ``dpcontrol
 bench`` all read through it, so they decode and route exactly alike. A new protocol is one class here and its
 entry in :data:`INPUTS`; nothing in the callers branches on protocol names.

@@ -504,7 +504,7 @@ class StatusProbe:
     """
 
     def __init__(self, simulation: LockstepSimulation, every_s: float = 1.0) -> None:
-        from dpcontrol.runtime.daemon import status_payload  # noqa: PLC0415 (zenoh only when asked for)
+        from dpcontrol.service.daemon import status_payload  # noqa: PLC0415 (zenoh only when asked for)
         from interfaces.zenoh.schemas import parse_message  # noqa: PLC0415
 
         self._build = status_payload

@@ -1,7 +1,7 @@
-"""The daemon's controller replica (:mod:`dpcontrol.runtime.replica`) on lockstep runs.
+"""The daemon's controller replica (:mod:`dpcontrol.service.replica`) on lockstep runs.
 
 The primary is the lockstep simulation's controller; the replica is fed what the primary consumed,
-one cycle later, exactly as :class:`dpcontrol.runtime.daemon.Daemon` does — checked "ahead of the
+one cycle later, exactly as :class:`dpcontrol.service.daemon.Daemon` does — checked "ahead of the
 deadline" before the primary's next step, or caught up in :meth:`ControllerReplica.hold` when no check
 came in between.
 """
@@ -16,7 +16,7 @@ from typing import Any
 import pytest
 
 from dpcontrol.runtime.alarms import AlarmEvent, AlarmRegistry
-from dpcontrol.runtime.replica import REPLICA_ALARM, ControllerReplica
+from dpcontrol.service.replica import REPLICA_ALARM, ControllerReplica
 from interfaces.messages import LinkStatus
 from sim_plant.bench.run import build_simulation
 from sim_plant.scenario import builtin_scenario_path, load_scenario

@@ -16,11 +16,11 @@ import pytest
 
 from dpcontrol.runtime.alarms import AlarmRegistry
 from dpcontrol.runtime.config import parse_config
-from dpcontrol.runtime.daemon import InputPump
 from dpcontrol.runtime.hub import SensorHub, SensorState
 from dpcontrol.runtime.inputs import SensorRouter, link_alarm_code, link_source
 from dpcontrol.runtime.transport_health import MIN_BAD_FOR_ALARM, InputHealth, TransportHealth
-from dpcontrol.runtime.transports import RawInput
+from dpcontrol.service.daemon import InputPump
+from dpcontrol.service.transports import RawInput
 from interfaces.mavlink.codec import MavlinkEncoder
 from interfaces.messages import Heading, LinkStatus, Measurement
 from interfaces.nmea0183 import encode_hdt

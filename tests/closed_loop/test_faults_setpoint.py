@@ -21,7 +21,7 @@ import pytest
 from status_sink import StatusSink
 
 from dpcontrol.runtime.config import parse_config
-from dpcontrol.runtime.daemon import Daemon
+from dpcontrol.service.daemon import Daemon
 from interfaces.messages import Rejected
 from interfaces.systemd import SystemdNotifier
 from interfaces.zenoh import schemas

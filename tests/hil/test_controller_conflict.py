@@ -16,7 +16,7 @@ import yaml
 from status_sink import StatusSink
 
 from dpcontrol.runtime.config import parse_config
-from dpcontrol.runtime.daemon import Daemon
+from dpcontrol.service.daemon import Daemon
 from interfaces.systemd import SystemdNotifier
 from interfaces.zenoh.config import ZenohConfig
 from interfaces.zenoh.loopback import free_tcp_port

@@ -11,13 +11,13 @@ from pathlib import Path
 import pytest
 
 from dpcontrol.runtime.config import parse_config
-from dpcontrol.runtime.daemon import Daemon
+from dpcontrol.service.daemon import Daemon
 from interfaces.zenoh.loopback import free_tcp_port
 
 
 def test_a_missing_serial_port_is_in_the_log_and_events_do_not_pile_up(
         tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
-    caplog.set_level(logging.INFO, logger="dpcontrol.runtime.daemon")
+    caplog.set_level(logging.INFO, logger="dpcontrol.service.daemon")
     port = tmp_path / "no-tty"
     config = parse_config({
         "vessel_id": "journal", "vessel": "cybership2", "loop": {"rate_hz": 10},
@@ -60,7 +60,7 @@ def test_an_unwritable_state_file_is_an_alarm_and_one_log_line_not_one_a_second(
     assert not thread.is_alive()
     assert daemon.saver is not None and daemon.saver.failed >= 4  # tried every 0.5 s, failed every time
     messages = [r.getMessage() for r in caplog.records]
-    saver_lines = [r.getMessage() for r in caplog.records if r.name == "dpcontrol.runtime.persist"]
+    saver_lines = [r.getMessage() for r in caplog.records if r.name == "dpcontrol.service.persist"]
     assert saver_lines == [f"cannot write state file {blocker / 'state.json'}: {blocker} is a file, not a folder"]
     state_alarm = [m for m in messages if m.startswith("alarm raised [WARNING] state.save_failed: ")]
     assert len(state_alarm) == 1 and str(blocker / "state.json") in state_alarm[0], messages

@@ -10,10 +10,10 @@ import time
 
 import pytest
 
-from dpcontrol.runtime import daemon as daemon_module
 from dpcontrol.runtime.config import parse_config
-from dpcontrol.runtime.daemon import Daemon, InputPump, StepErrorLog
-from dpcontrol.runtime.transports import RawInput
+from dpcontrol.service import daemon as daemon_module
+from dpcontrol.service.daemon import Daemon, InputPump, StepErrorLog
+from dpcontrol.service.transports import RawInput
 from interfaces.mavlink.codec import MavlinkEncoder
 from interfaces.mavlink.transport import MavlinkUdpSender
 from interfaces.messages import FixQuality, Heading, LinkStatus, Measurement, PositionFix
@@ -49,7 +49,7 @@ def test_a_udp_flood_beyond_the_bound_raises_inputs_overflow_and_control_goes_on
         monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture) -> None:
     """Real pymavlink datagrams on 127.0.0.1, 600 at once against a bound of 50 (the real bound,
     50 000, is the same code with more memory)."""
-    caplog.set_level(logging.WARNING, logger="dpcontrol.runtime.daemon")
+    caplog.set_level(logging.WARNING, logger="dpcontrol.service.daemon")
     monkeypatch.setattr(daemon_module, "MAX_PENDING_INPUTS", 50)
     port = free_udp_port()
     config = parse_config({
@@ -81,7 +81,7 @@ def test_a_udp_flood_beyond_the_bound_raises_inputs_overflow_and_control_goes_on
 
 
 def test_a_step_that_keeps_failing_logs_one_traceback_then_a_summary(caplog: pytest.LogCaptureFixture) -> None:
-    caplog.set_level(logging.INFO, logger="dpcontrol.runtime.daemon")
+    caplog.set_level(logging.INFO, logger="dpcontrol.service.daemon")
     errors = StepErrorLog(repeat_s=10.0)
     for k in range(250):  # 25 s at 10 Hz, the same error every cycle
         errors.failed(0.1 * k, RuntimeError("the same fault"), k + 1)

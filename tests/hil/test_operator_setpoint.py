@@ -20,7 +20,7 @@ import pytest
 
 from dpcontrol.cli import main
 from dpcontrol.runtime.config import parse_config
-from dpcontrol.runtime.daemon import Daemon
+from dpcontrol.service.daemon import Daemon
 from dpcontrol.setpoint import run_setpoint
 from interfaces.systemd import SystemdNotifier
 from interfaces.zenoh import schemas

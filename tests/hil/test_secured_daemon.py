@@ -21,7 +21,7 @@ from dpbase.schema import ConfigError
 from dpcontrol.cli import main
 from dpcontrol.logtools import read_records
 from dpcontrol.runtime.config import parse_config
-from dpcontrol.runtime.daemon import Daemon
+from dpcontrol.service.daemon import Daemon
 from interfaces.systemd import SystemdNotifier
 from interfaces.zenoh import pki, schemas
 from interfaces.zenoh.config import ZenohConfig

@@ -25,7 +25,7 @@ import pytest
 import yaml
 
 from dpcontrol.runtime.config import parse_config
-from dpcontrol.runtime.daemon import Daemon
+from dpcontrol.service.daemon import Daemon
 from interfaces.systemd import SystemdNotifier
 from interfaces.zenoh.loopback import free_tcp_port
 from sim_plant.bench.demo import _NotifyListener, _spawn, _stop, emulator_command, prepare

@@ -1,4 +1,4 @@
-"""The daemon's transport registry (``dpcontrol.runtime.transports``): the reader each configured protocol gets,
+"""The daemon's transport registry (``dpcontrol.service.transports``): the reader each configured protocol gets,
 and what it hands the daemon — the bytes as received and the link changes, undecoded — over real parts: pyserial
 on a pseudo-terminal, a python-can virtual bus, a UDP socket on 127.0.0.1."""
 
@@ -12,7 +12,7 @@ import can
 import pytest
 
 from dpcontrol.runtime.config import parse_config
-from dpcontrol.runtime.transports import READERS, RawInput, ReaderOptions, open_reader
+from dpcontrol.service.transports import READERS, RawInput, ReaderOptions, open_reader
 from interfaces.mavlink.codec import MavlinkEncoder
 from interfaces.mavlink.transport import MavlinkUdpSender
 from interfaces.messages import FixQuality, Heading, LinkStatus, PositionFix

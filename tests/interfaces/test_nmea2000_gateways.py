@@ -140,7 +140,7 @@ def test_the_daemon_reads_a_gateway_configured_like_a_can_bus() -> None:
     magnetic compass turned true with the transport's configured ``variation_deg`` (no 127258 on this bus)."""
     from dpbase.schema import ConfigError  # noqa: PLC0415
     from dpcontrol.runtime.config import parse_config  # noqa: PLC0415
-    from dpcontrol.runtime.daemon import InputPump  # noqa: PLC0415
+    from dpcontrol.service.daemon import InputPump  # noqa: PLC0415
 
     with YdwgRawServer("tcp") as gateway:
         config = {"vessel_id": "gw", "vessel": "cybership2",

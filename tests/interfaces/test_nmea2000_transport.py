@@ -280,7 +280,7 @@ def test_a_sensor_configured_by_name_follows_its_device_to_a_new_address() -> No
     """On a python-can virtual bus through the daemon's input stage: the reader asks for the address claims
     (59904 from the null address), a compass routed by NAME is found at whatever address it claims."""
     from dpcontrol.runtime.config import parse_config  # noqa: PLC0415
-    from dpcontrol.runtime.daemon import InputPump  # noqa: PLC0415
+    from dpcontrol.service.daemon import InputPump  # noqa: PLC0415
     from interfaces.messages import Heading as HeadingMessage  # noqa: PLC0415
     from interfaces.nmea2000.codec import make_can_id  # noqa: PLC0415
 

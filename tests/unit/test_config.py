@@ -11,7 +11,7 @@ import yaml
 from dpbase.schema import ConfigError
 from dpcontrol.cli import main
 from dpcontrol.runtime.config import RealtimeSettings, ReplicaSettings, load_config, parse_config
-from dpcontrol.runtime.daemon import LoopStats
+from dpcontrol.service.daemon import LoopStats
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = sorted((ROOT / "deploy" / "config").glob("*.yaml"))
@@ -196,7 +196,7 @@ def test_daemon_refuses_a_stats_file_it_could_not_write_before_starting(
     path.write_text(yaml.safe_dump(copy.deepcopy(BASE)))
     blocker = tmp_path / "a-file"
     blocker.write_text("")
-    monkeypatch.setattr("dpcontrol.runtime.daemon.Daemon", _NoDaemon)
+    monkeypatch.setattr("dpcontrol.service.daemon.Daemon", _NoDaemon)
     monkeypatch.setattr(_NoDaemon, "runs", 0)
     assert main(["run", "--config", str(path), "--stats-out", str(blocker / "stats.json"), "--duration", "1"]) == 2
     assert f"stats.json: cannot write into the output folder {blocker}" in capsys.readouterr().err
@@ -209,7 +209,7 @@ def test_stats_that_cannot_be_written_at_the_end_are_an_error_not_a_traceback(
     path.write_text(yaml.safe_dump(copy.deepcopy(BASE)))
     folder = tmp_path / "stats"
     folder.mkdir()
-    monkeypatch.setattr("dpcontrol.runtime.daemon.Daemon", _NoDaemon)
+    monkeypatch.setattr("dpcontrol.service.daemon.Daemon", _NoDaemon)
     monkeypatch.setattr(_NoDaemon, "runs", 0)
     monkeypatch.setattr(_NoDaemon, "remove_during_run", folder)  # the folder goes away while the daemon runs
     assert main(["run", "--config", str(path), "--stats-out", str(folder / "stats.json"), "--duration", "1"]) == 1

@@ -17,8 +17,8 @@ from dpcontrol.models.vessels import BUILTIN_VESSELS
 from dpcontrol.runtime.alarms import AlarmRegistry, Severity
 from dpcontrol.runtime.config import ConsequenceSettings, parse_config
 from dpcontrol.runtime.consequence import ConsequenceMonitor
-from dpcontrol.runtime.daemon import status_payload
 from dpcontrol.runtime.step import DpController
+from dpcontrol.service.daemon import status_payload
 from interfaces.zenoh.schemas import parse_message
 
 SUPPLY = BUILTIN_VESSELS["supply"]  # bow tunnels at x = 30 and 22 m, azimuths at x = -33 m, y = ∓4.5 m

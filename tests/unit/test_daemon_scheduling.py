@@ -15,7 +15,7 @@ from typing import Any
 from test_config import BASE
 
 from dpcontrol.runtime.config import parse_config
-from dpcontrol.runtime.daemon import Daemon
+from dpcontrol.service.daemon import Daemon
 
 
 def _apply_in_thread(loop: dict[str, Any]) -> tuple[Daemon, dict[str, Any]]:

@@ -17,7 +17,7 @@ import pytest
 from test_config import BASE
 
 from dpcontrol.runtime.config import parse_config
-from dpcontrol.runtime.daemon import Daemon
+from dpcontrol.service.daemon import Daemon
 
 
 def test_the_signal_handler_takes_no_lock_the_interrupted_loop_may_hold() -> None:
@@ -42,7 +42,7 @@ def test_a_signal_stops_the_loop_within_a_period_and_is_named(caplog: pytest.Log
     daemon = Daemon(parse_config({**BASE, "loop": {"rate_hz": 10}}))
     codes: list[int] = []
     thread = threading.Thread(target=lambda: codes.append(daemon.run(duration_s=60.0, install_signals=False)))
-    with caplog.at_level(logging.INFO, logger="dpcontrol.runtime.daemon"):
+    with caplog.at_level(logging.INFO, logger="dpcontrol.service.daemon"):
         thread.start()
         deadline = time.monotonic() + 60.0
         while daemon.stats.count < 3 and time.monotonic() < deadline:  # the loop is running

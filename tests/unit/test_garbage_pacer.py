@@ -12,7 +12,7 @@ import weakref
 from test_config import BASE
 
 from dpcontrol.runtime.config import parse_config
-from dpcontrol.runtime.daemon import Daemon, GarbagePacer
+from dpcontrol.service.daemon import Daemon, GarbagePacer
 
 
 class _Node:

@@ -22,9 +22,9 @@ CORE = ["dpcontrol/models", "dpcontrol/estimation", "dpcontrol/guidance", "dpcon
         "dpcontrol/allocation"]
 CORE_FORBIDDEN = {"time", "os", "sys", "socket", "threading", "logging", "subprocess", "asyncio", "io",
                   "serial", "can", "zenoh", "pymavlink", "yaml", "datetime", "random", "pathlib",
-                  "interfaces", "sim_plant", "dpcontrol.runtime", "dpcontrol.cli"}
+                  "interfaces", "sim_plant", "dpcontrol.runtime", "dpcontrol.service", "dpcontrol.cli"}
 CONTROLLER = {"dpcontrol.estimation", "dpcontrol.guidance", "dpcontrol.control", "dpcontrol.allocation",
-              "dpcontrol.runtime", "dpcontrol.cli"}
+              "dpcontrol.runtime", "dpcontrol.service", "dpcontrol.cli"}
 
 
 def _imports(path: Path) -> list[str]:
@@ -70,6 +70,23 @@ def test_the_base_package_imports_no_project_package() -> None:
     assert _violations(_files("dpbase"), {"dpcontrol", "interfaces", "sim_plant"}) == []
 
 
+#: What the per-step logic (dpcontrol/runtime) never imports: threads, the clock, devices, the wire, the service shell.
+RUNTIME_FORBIDDEN = {"threading", "time", "socket", "subprocess", "asyncio", "os", "signal", "ctypes", "serial", "can",
+                     "zenoh", "interfaces.zenoh.node", "interfaces.systemd", "dpcontrol.service", "dpcontrol.cli"}
+
+
+def test_the_per_step_logic_has_no_threads_clock_devices_or_service_shell() -> None:
+    files = _files("dpcontrol/runtime")
+    assert files, "dpcontrol/runtime has no sources"
+    assert _violations(files, RUNTIME_FORBIDDEN) == []
+
+
+def test_the_service_shell_is_imported_by_no_lower_layer() -> None:
+    lower = _files("dpbase", "interfaces", "sim_plant", "dpcontrol/runtime", *CORE)
+    allowed = {p for p in _files("sim_plant/bench")}  # composition: the bench wires plant and controller
+    assert _violations([p for p in lower if p not in allowed], {"dpcontrol.service"}) == []
+
+
 COMPOSITION = ("bench", "campaign")  # sim_plant's packages allowed to import the controller
 
 
@@ -105,7 +122,7 @@ def test_the_composition_packages_exist() -> None:
 #: transports, the recorder and the daemon's file parser (which reads transport and Zenoh settings).
 SERVICE_MODULES = ("zenoh", "serial", "can", "pymavlink", "cryptography", "interfaces.zenoh", "interfaces.recorder",
                    "interfaces.nmea0183", "interfaces.nmea2000", "interfaces.mavlink", "sim_plant",
-                   "dpcontrol.runtime.config", "dpcontrol.runtime.daemon")
+                   "dpcontrol.runtime.config", "dpcontrol.service.daemon")
 
 
 @pytest.mark.parametrize("module", ["dpcontrol.runtime.step", "dpcontrol.runtime.hub"])

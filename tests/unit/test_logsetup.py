@@ -37,10 +37,10 @@ def test_every_line_of_a_traceback_keeps_the_priority() -> None:
     try:
         raise RuntimeError("injected")
     except RuntimeError:
-        record = logging.LogRecord("dpcontrol.runtime.daemon", logging.ERROR, __file__, 1, "control step failed",
+        record = logging.LogRecord("dpcontrol.service.daemon", logging.ERROR, __file__, 1, "control step failed",
                                    None, sys.exc_info())
     lines = formatter.format(record).split("\n")
-    assert lines[0] == "<3>dpcontrol.runtime.daemon: control step failed"
+    assert lines[0] == "<3>dpcontrol.service.daemon: control step failed"
     assert len(lines) > 3 and all(line.startswith("<3>") for line in lines)
     assert lines[-1] == "<3>RuntimeError: injected"
 
@@ -71,10 +71,10 @@ zenoh: {{listen: ["tcp/127.0.0.1:0"]}}
     link = [line for line in lines if "alarm raised [WARNING] transport.serial0.link" in line]
     assert len(link) == 1, lines
     if journal:
-        assert link[0].startswith("<4>dpcontrol.runtime.daemon: alarm raised"), link
+        assert link[0].startswith("<4>dpcontrol.service.daemon: alarm raised"), link
         assert all(line[:3] in ("<2>", "<3>", "<4>", "<6>", "<7>") for line in lines), lines
     else:
-        assert link[0][:4].isdigit() and " WARNING dpcontrol.runtime.daemon: alarm raised" in link[0], link
+        assert link[0][:4].isdigit() and " WARNING dpcontrol.service.daemon: alarm raised" in link[0], link
 
 
 def test_a_fresh_machines_font_cache_note_stays_out_of_the_tools_output(tmp_path: Path) -> None:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from dpcontrol.runtime.daemon import TIMING_WINDOW, LoopStats
+from dpcontrol.service.daemon import TIMING_WINDOW, LoopStats
 
 
 def test_the_summary_splits_the_time_to_the_command_and_the_off_cpu_part_of_the_step() -> None:

@@ -15,7 +15,7 @@ import orjson
 import pytest
 
 from dpcontrol.runtime.config import StateSettings
-from dpcontrol.runtime.persist import BackgroundSaver, LoadStatus, StateStore, StateStoreError
+from dpcontrol.service.persist import BackgroundSaver, LoadStatus, StateStore, StateStoreError
 
 ROOT = Path(__file__).resolve().parents[2]
 HASH = "ef" * 32
@@ -196,7 +196,7 @@ def test_background_saver_reports_errors_and_never_raises(tmp_path: Path) -> Non
 
 KILL_DURING_SAVE = textwrap.dedent("""
     import os, sys, threading
-    from dpcontrol.runtime.persist import StateStore
+    from dpcontrol.service.persist import StateStore
 
     store = StateStore(sys.argv[1], max_age_s=1e9)
     store.save(1000.0, {"generation": 1, "blob": [0.5] * 50000})
@@ -244,7 +244,7 @@ def test_sigkill_during_a_save_leaves_the_old_complete_file(tmp_path: Path, phas
 
 SAVE_FOREVER = textwrap.dedent("""
     import sys
-    from dpcontrol.runtime.persist import StateStore
+    from dpcontrol.service.persist import StateStore
 
     store = StateStore(sys.argv[1], max_age_s=1e9)
     n = 0

@@ -7,8 +7,8 @@ from __future__ import annotations
 
 from dpbase.requests import SetpointRequest
 from dpcontrol.bench import bench_config
-from dpcontrol.runtime.daemon import status_payload
 from dpcontrol.runtime.step import REQUEST_REFUSED_HOLD_S, DpController, Mode
+from dpcontrol.service.daemon import status_payload
 from interfaces.zenoh import schemas
 
 

@@ -7,7 +7,7 @@ import time
 
 import pytest
 
-from dpcontrol.runtime.spin import (
+from dpcontrol.service.spin import (
     MAX_ITERATIONS,
     MIN_ITERATIONS,
     DeadlineSpinner,

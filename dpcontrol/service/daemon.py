@@ -1,7 +1,7 @@
 """``dpcontrol run``: the control loop on a monotonic clock, with real transports and Zenoh.
 
 Threads: each transport has its reader thread (interfaces/…/transport.py, chosen by
-:mod:`dpcontrol.runtime.transports`) that hands what it received, undecoded, to :class:`InputPump`'s queue
+:mod:`dpcontrol.service.transports`) that hands what it received, undecoded, to :class:`InputPump`'s queue
 (decoded and routed in the loop thread by :mod:`dpcontrol.runtime.ingest`); Zenoh callbacks fill the
 setpoint inbox and the feedback slot. The loop thread (the main thread) owns everything else: at every
 deadline it drains the inputs, runs :meth:`DpController.step` (the same step the lockstep simulation runs), publishes
@@ -12,7 +12,7 @@ the watchdog would keep a hung loop "alive").
 Deadline scheduling: deadlines are ``t0 + k·T``; a late cycle runs at once, cycles that are missed
 entirely are counted and skipped (the next deadline is the next one in the future), so the loop
 never drifts and never bursts. The loop sleeps until ``loop.deadline_spin_ms`` before a deadline and
-spins the rest with the GIL released (:mod:`dpcontrol.runtime.spin`): the cycle typically starts
+spins the rest with the GIL released (:mod:`dpcontrol.service.spin`): the cycle typically starts
 within one ~20 µs spin slice of its deadline instead of a timer wake-up later.
 
 SIGTERM/SIGINT: the loop commands zero thrust (standby) as its last command, publishes a final
@@ -44,13 +44,13 @@ from dpcontrol.runtime.config import DaemonConfig, config_summary
 from dpcontrol.runtime.consequence import ConsequenceReport
 from dpcontrol.runtime.ingest import transport_inputs
 from dpcontrol.runtime.inputs import SensorRouter
-from dpcontrol.runtime.persist import BackgroundSaver, StateStore
-from dpcontrol.runtime.replica import ControllerReplica
-from dpcontrol.runtime.spin import DeadlineSpinner, loop_spinner
 from dpcontrol.runtime.step import RECENT_REQUESTS_S, DpController, Mode, StepOutput
 from dpcontrol.runtime.thrusters import ThrusterFeedback
 from dpcontrol.runtime.transport_health import InputHealth
-from dpcontrol.runtime.transports import InputEvent, RawInput, Reader, ReaderOptions, open_reader
+from dpcontrol.service.persist import BackgroundSaver, StateStore
+from dpcontrol.service.replica import ControllerReplica
+from dpcontrol.service.spin import DeadlineSpinner, loop_spinner
+from dpcontrol.service.transports import InputEvent, RawInput, Reader, ReaderOptions, open_reader
 from interfaces.messages import LinkStatus, Measurement, RejectedInput
 from interfaces.recorder import Recorder, TopicSpec, default_topics
 from interfaces.systemd import SystemdNotifier
@@ -130,7 +130,7 @@ def request_from_dict(data: dict[str, Any]) -> SetpointRequest:
 class InputPump:
     """Starts the transport readers; decodes, counts and routes what they received in the loop thread.
 
-    The readers (:mod:`dpcontrol.runtime.transports`, one per configured transport, chosen by configuration) hand
+    The readers (:mod:`dpcontrol.service.transports`, one per configured transport, chosen by configuration) hand
     every raw input and link change, undecoded, to one deque from their threads (thread-safe appends); the loop
     drains it once per cycle through the input stage (:mod:`dpcontrol.runtime.ingest`: the code the lockstep
     simulation, replay and the bench run). At most ``max_pending`` raw inputs wait in it: beyond that, new ones
@@ -569,7 +569,7 @@ class Daemon:
         # from here on the loop collects garbage after each cycle's command, not wherever it piles up
         garbage = self.garbage = GarbagePacer()
         # the CPUs the readers and Zenoh's threads may use (before the loop thread pins itself): with one, a
-        # spinning loop would keep them off it, so the loop sleeps to its deadlines (dpcontrol/runtime/spin.py)
+        # spinning loop would keep them off it, so the loop sleeps to its deadlines (dpcontrol/service/spin.py)
         shared_cpus = len(os.sched_getaffinity(0))
         # after _open(): the reader and Zenoh threads exist already and keep the normal scheduler
         self._apply_realtime()
@@ -600,7 +600,7 @@ class Daemon:
                     if self._sleep_until(deadline - lead):
                         break
                     replica.check(self.clock(), ahead=True)
-                # sleep to the spin window, spin the rest (dpcontrol/runtime/spin.py says why)
+                # sleep to the spin window, spin the rest (dpcontrol/service/spin.py says why)
                 if self._sleep_until(deadline - spin) or (spinner is not None and spinner.until(deadline, self._stop)):
                     break
                 start = self.clock()
