@@ -63,6 +63,10 @@ def _variants() -> Iterator[tuple[str, dict[str, Any]]]:
     variant["sensors"].append({"name": "ap_gnss", "kind": "position", "transport": "autopilot", "rate_hz": 5,
                                "sigma_m": 1.0})
     yield "mavlink transport", variant
+    variant = copy.deepcopy(base)
+    variant["sensors"].append({"name": "rot1", "kind": "rate_of_turn", "transport": variant["sensors"][0]["transport"],
+                               "rate_hz": 10, "sigma_degps": 0.01})
+    yield "rate-of-turn sensor", variant
     # the optional sections given empty, so that their parsers read every key with its default
     variant = copy.deepcopy(base)
     for section in ("guidance", "allocation", "zenoh", "hub", "fallback", "thruster_monitor", "deviation", "loop"):

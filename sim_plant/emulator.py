@@ -78,7 +78,7 @@ from typing import IO, Any
 
 import numpy as np
 
-from interfaces.messages import FixQuality, Heading, PositionFix, SensorMessage
+from interfaces.messages import FixQuality, Heading, PositionFix, RateOfTurn, SensorMessage
 from interfaces.systemd import SystemdNotifier
 from interfaces.zenoh.config import ZenohConfig
 from interfaces.zenoh.security import ZenohSecurity
@@ -421,6 +421,8 @@ class HilEmulator:
         if wire.spec.kind == "gnss":
             lat, lon = self.plant.frame.surface_to_geodetic(init.north_m, init.east_m)
             return [PositionFix(lat, lon, FixQuality.DGPS, self.scenario.utc_start_s, 12, 0.8, 0.0)]
+        if wire.spec.kind == "rot":
+            return [RateOfTurn(init.yaw_rate_radps)]
         return [Heading(init.heading_rad % (2.0 * math.pi))]
 
     def _open_zenoh(self) -> None:

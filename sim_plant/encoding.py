@@ -7,12 +7,15 @@ wire:
 * NMEA 0183 (:class:`NmeaSensorEncoder`): a GNSS sends GGA + GST (or the configured sentences among
   GGA, GNS, RMC, GST), a gyrocompass THS + ROT (or HDT, THS, ROT); an invalid sample is GGA quality 0
   (+ RMC status V when RMC is sent) or THS mode V (+ ROT status V). HDT has no validity field, so an
-  HDT-only gyro sends a THS V for an invalid sample.
+  HDT-only gyro sends a THS V for an invalid sample. A rate-of-turn sensor (``rot``) sends ``$TIROT``
+  (talker TI, turn indicator), status V when invalid.
 * NMEA 2000 (:class:`N2kSensorEncoder`): a GNSS sends PGN 129029 (fast packet), a gyro 127250 (true)
-  + 127251; an invalid sample is 129029 with method "no GNSS" or 127250 with the heading "not
-  available". GST statistics have no PGN here and are counted as not carried.
+  + 127251, a rate-of-turn sensor 127251; an invalid sample is 129029 with method "no GNSS" or
+  127250 / 127251 with the heading / rate "not available". GST statistics have no PGN here and are
+  counted as not carried.
 * MAVLink 2 (:class:`MavlinkSensorEncoder`): a GNSS sends GPS_RAW_INT, a gyro ATTITUDE (yaw and yaw
-  rate in one message); an invalid sample is GPS_RAW_INT fix_type 0 or ATTITUDE without values.
+  rate in one message), a rate-of-turn sensor ATTITUDE with only ``yawspeed``; an invalid sample is
+  GPS_RAW_INT fix_type 0 or ATTITUDE without values.
 """
 
 from __future__ import annotations
@@ -42,6 +45,7 @@ POSITION_SENTENCES = ("GGA", "GNS", "RMC", "GST")
 HEADING_SENTENCES = ("HDT", "THS", "ROT")
 DEFAULT_POSITION_SENTENCES = ("GGA", "GST")
 DEFAULT_HEADING_SENTENCES = ("THS", "ROT")
+RATE_SENTENCES = ("ROT",)
 DATE_DDMMYY = "010126"  # RMC needs a date; the plant has none (1 January 2026)
 DATE_DAYS_SINCE_1970 = 20454  # the same date for PGN 129029
 
@@ -51,9 +55,9 @@ class NmeaSensorEncoder:
 
     Parameters
     ----------
-    kind : {"gnss", "gyro"}
+    kind : {"gnss", "gyro", "rot"}
     talker : str or None
-        Talker ID (default GP for a GNSS, HE for a gyrocompass).
+        Talker ID (default GP for a GNSS, HE for a gyrocompass, TI for a rate-of-turn sensor).
     sentences : sequence of str, optional
         Sentence types to send (defaults above).
     """
@@ -61,11 +65,13 @@ class NmeaSensorEncoder:
     def __init__(self, kind: str, talker: str | None = None, sentences: Sequence[str] = (), *,
                  rate_of_turn: bool = True) -> None:
         gnss = kind in ("gnss", "position")
-        self.talker = talker or ("GP" if gnss else "HE")
+        rate = kind in ("rot", "rate_of_turn")
+        self.talker = talker or ("GP" if gnss else "TI" if rate else "HE")
         self.gns_talker = talker or "GN"  # GNS is a multi-constellation sentence
-        applicable = POSITION_SENTENCES if gnss else HEADING_SENTENCES
+        applicable = POSITION_SENTENCES if gnss else RATE_SENTENCES if rate else HEADING_SENTENCES
         chosen = tuple(x for x in sentences if x in applicable)
-        self.sentences = chosen or (DEFAULT_POSITION_SENTENCES if gnss else DEFAULT_HEADING_SENTENCES)
+        self.sentences = chosen or (DEFAULT_POSITION_SENTENCES if gnss else RATE_SENTENCES if rate
+                                    else DEFAULT_HEADING_SENTENCES)
         self.rate_of_turn = rate_of_turn  # a gyro that also sends its rate flags it invalid with the heading
         self.counters: Counter[str] = Counter()
 
@@ -104,6 +110,8 @@ class NmeaSensorEncoder:
             if "RMC" in wanted:
                 out.append(encode_rmc_no_fix(talker, fix.utc_time_s, DATE_DDMMYY))
             return out
+        if fix.kind == "rate":
+            return [encode_rot(RateOfTurn(0.0), talker, valid=False)]
         out = []
         if "THS" in wanted or "HDT" not in wanted:  # HDT has no validity field: say it with THS V
             out.append(encode_ths(Heading(fix.heading_rad or 0.0), talker, mode="V"))
@@ -138,6 +146,8 @@ class N2kSensorEncoder:
             elif isinstance(m, InvalidFix):
                 if m.kind == "position":
                     frames += encoder.gnss_position(None, date_days=DATE_DAYS_SINCE_1970, sid=sid)
+                elif m.kind == "rate":
+                    frames += encoder.rate_of_turn(None, sid=sid)
                 else:
                     frames += encoder.heading(None, sid=sid)
                     if self.rate_of_turn:

@@ -13,9 +13,10 @@ from dataclasses import dataclass
 GNSS_FAULTS: tuple[str, ...] = ("gnss_freeze", "gnss_jump", "gnss_drift", "gnss_noise", "gnss_dropout",
                                 "gnss_invalid")
 GYRO_FAULTS: tuple[str, ...] = ("gyro_freeze", "gyro_offset", "gyro_drift", "gyro_dropout", "gyro_invalid")
+ROT_FAULTS: tuple[str, ...] = ("rot_freeze", "rot_offset", "rot_dropout", "rot_invalid")  # rate-of-turn sensors
 THRUSTER_FAULTS: tuple[str, ...] = ("thruster_stuck", "thruster_zero", "thruster_wrong_sign", "thruster_not_ready")
 PROTOCOL_FAULTS: tuple[str, ...] = ("malformed_burst", "serial_unplug", "heartbeat_loss")
-FAULT_KINDS: tuple[str, ...] = GNSS_FAULTS + GYRO_FAULTS + THRUSTER_FAULTS + PROTOCOL_FAULTS
+FAULT_KINDS: tuple[str, ...] = GNSS_FAULTS + GYRO_FAULTS + ROT_FAULTS + THRUSTER_FAULTS + PROTOCOL_FAULTS
 
 
 @dataclass(frozen=True)
@@ -42,7 +43,7 @@ class Fault:
     offset_rad : float
         ``gyro_offset``: heading offset [rad].
     rate_radps : float
-        ``gyro_drift``: heading drift rate [rad/s].
+        ``gyro_drift``: heading drift rate [rad/s]; ``rot_offset``: rate error [rad/s].
     count : int
         ``malformed_burst``: number of malformed sentences/frames (emulator).
     """

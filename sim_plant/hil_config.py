@@ -22,7 +22,8 @@ Keys read (all others ignored)::
     zenoh: {mode: peer, listen: ["tcp/127.0.0.1:7447"], connect: []}
 
 Scenario sensors are matched to controller sensors by name (:func:`wire_sensors`): a scenario
-``gnss`` must be a controller ``position`` sensor, a ``gyro`` a ``heading`` sensor. The controller's
+``gnss`` must be a controller ``position`` sensor, a ``gyro`` a ``heading`` sensor, a ``rot`` a ``rate_of_turn``
+sensor. The controller's
 transport decides the protocol on the rig (the scenario's ``protocol`` is what the lockstep
 simulation uses); a difference is reported as a note.
 """
@@ -44,8 +45,8 @@ from sim_plant.encoding import HEADING_SENTENCES, POSITION_SENTENCES
 from sim_plant.scenario import Scenario
 from sim_plant.sensors import SensorSpec
 
-KINDS: tuple[str, ...] = ("position", "heading")
-SENSOR_KIND_OF: dict[str, str] = {"gnss": "position", "gyro": "heading"}
+KINDS: tuple[str, ...] = ("position", "heading", "rate_of_turn")
+SENSOR_KIND_OF: dict[str, str] = {"gnss": "position", "gyro": "heading", "rot": "rate_of_turn"}
 PROTOCOLS: tuple[str, ...] = ("nmea0183", "nmea2000", "mavlink")
 SENTENCES: tuple[str, ...] = POSITION_SENTENCES + HEADING_SENTENCES  # what the daemon accepts in ``sentences``
 MAX_N2K_SENDER_ADDRESS = 251  # 252/253 are "no address"/"null", a sensor cannot send from them

@@ -42,7 +42,7 @@ from sim_plant.environment.wind import WindModel
 from sim_plant.faults import THRUSTER_FAULTS, Fault
 from sim_plant.kernels import NO_DRIVE, plant_substep
 from sim_plant.scenario import Scenario
-from sim_plant.sensors import GnssSensor, GnssSpec, GyroSensor, SensorSample
+from sim_plant.sensors import GnssSensor, GnssSpec, GyroSensor, GyroSpec, RotSensor, SensorSample
 from sim_plant.thrusters import DriveReport, ThrusterCommand, ThrusterDrives
 from sim_plant.vessel import DpVesselModel, ManoeuvringVesselModel, vessel_model
 
@@ -195,13 +195,15 @@ class Plant:
         self.wind = WindModel(wind.speed_mps, wind.direction_rad, self.model.wind, rng(_STREAM_WIND),
                               gusts=wind.gusts, height_m=wind.height_m)
         self.frame = LocalFrame(scenario.datum.lat_deg, scenario.datum.lon_deg)
-        self.sensors: list[GnssSensor | GyroSensor] = []
+        self.sensors: list[GnssSensor | GyroSensor | RotSensor] = []
         for spec in scenario.sensors:
             stream = rng(_STREAM_SENSOR, zlib.crc32(spec.name.encode()))
             if isinstance(spec, GnssSpec):
                 self.sensors.append(GnssSensor(spec, self.frame, stream, scenario.faults, scenario.utc_start_s))
-            else:
+            elif isinstance(spec, GyroSpec):
                 self.sensors.append(GyroSensor(spec, stream, scenario.faults, scenario.utc_start_s))
+            else:
+                self.sensors.append(RotSensor(spec, stream, scenario.faults, scenario.utc_start_s))
 
         cn, ce = self.current.velocity_ned(0.0)
         c, s = math.cos(init.heading_rad), math.sin(init.heading_rad)

@@ -92,8 +92,9 @@ def n2k_burst(kind: str, source_address: int, count: int, rng: np.random.Generat
 
     Parameters
     ----------
-    kind : {"position", "heading"}
-        A GNSS (fast packets of 129029, single frames of 129025) or a gyrocompass (127250, 127251).
+    kind : {"position", "heading", "rate_of_turn"}
+        A GNSS (fast packets of 129029, single frames of 129025), a gyrocompass (127250, 127251) or a
+        rate-of-turn sensor (127251).
     source_address : int
         The sensor's address (0–251).
     count : int
@@ -111,8 +112,8 @@ def n2k_burst(kind: str, source_address: int, count: int, rng: np.random.Generat
     """
     if count < 0:
         raise ValueError("count must be >= 0")
-    if kind not in ("position", "heading"):
-        raise ValueError(f"kind must be 'position' or 'heading', got {kind!r}")
+    if kind not in ("position", "heading", "rate_of_turn"):
+        raise ValueError(f"kind must be 'position', 'heading' or 'rate_of_turn', got {kind!r}")
     whole = [list(m) for m in fast_packets if len(m) > 1] if kind == "position" else []
     out: list[list[Frame]] = []
     for i in range(count):
@@ -123,7 +124,8 @@ def n2k_burst(kind: str, source_address: int, count: int, rng: np.random.Generat
             data = bytes([int(rng.integers(8)) << 5, int(rng.integers(MAX_FAST_PACKET_BYTES + 1, 256))]) + rng.bytes(6)
             out.append([(make_can_id(3, PGN_GNSS_POSITION, source_address), data)])
         else:
-            pgn = PGN_POSITION_RAPID if kind == "position" else (PGN_VESSEL_HEADING, PGN_RATE_OF_TURN)[i % 2]
+            pgn = PGN_POSITION_RAPID if kind == "position" else PGN_RATE_OF_TURN if kind == "rate_of_turn" \
+                else (PGN_VESSEL_HEADING, PGN_RATE_OF_TURN)[i % 2]
             n = int(rng.integers(1, MIN_PAYLOAD_BYTES[pgn]))
             out.append([(make_can_id(2, pgn, source_address), rng.bytes(n))])
     return out

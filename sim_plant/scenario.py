@@ -26,17 +26,19 @@ heading-only setpoint is an autopilot course),
 ``faults`` [{``t_s``, ``kind``, ``duration_s`` (optional: to the end), ``sensor`` | ``thruster`` |
 ``target``, and per kind: ``gnss_jump`` ``offset_m``, ``direction_deg``; ``gnss_drift`` ``rate_mps``,
 ``direction_deg``; ``gnss_noise`` ``factor``; ``gyro_offset`` ``offset_deg``; ``gyro_drift``
-``rate_degps``; ``malformed_burst`` ``count``}],
-``sensors`` [{``name``, ``kind`` gnss | gyro, ``protocol`` nmea0183 | nmea2000 | mavlink, ``rate_hz``,
+``rate_degps``; ``rot_offset`` ``rate_degps``; ``malformed_burst`` ``count``}],
+``sensors`` [{``name``, ``kind`` gnss | gyro | rot, ``protocol`` nmea0183 | nmea2000 | mavlink, ``rate_hz``,
 ``offset_s``; gnss: ``noise_m``, ``markov_m``, ``markov_time_constant_s``, ``lever_arm_m`` [x, y],
 ``quality``, ``satellites``, ``hdop``, ``antenna_height_m``, ``gst``; gyro: ``noise_deg``, ``bias_deg``,
-``markov_deg``, ``markov_time_constant_s``, ``rate_of_turn``, ``rot_noise_degps``}] (default: one GNSS
+``markov_deg``, ``markov_time_constant_s``, ``rate_of_turn``, ``rot_noise_degps``; rot (a rate-of-turn sensor
+independent of the gyros): ``noise_degps`` (0.01), ``bias_degps`` (0.03)}] (default: one GNSS
 ``gnss1`` and one gyro ``gyro1`` on nmea0183 with the vessel's default noise).
 
 Values past the range of the plant's models are refused as typos: ``hs_m`` ≤ 30, current ``speed_mps``
 and ``speed_std_mps`` ≤ 10, wind ``speed_mps`` ≤ 80, initial ``surge_mps``/``sway_mps`` within ±30 and
 ``yaw_rate_degps`` within ±30; GNSS ``noise_m``, ``markov_m`` ≤ 1000 and ``antenna_height_m`` within
-±1000, ``hdop`` < 100; gyro ``noise_deg``, ``markov_deg`` ≤ 180, ``rot_noise_degps`` ≤ 30. A run that still
+±1000, ``hdop`` < 100; gyro ``noise_deg``, ``markov_deg`` ≤ 180, ``rot_noise_degps`` ≤ 30; rot ``noise_degps`` ≤ 30
+and ``bias_degps`` within ±30. A run that still
 drives the vessel's state to overflow (inline vessel data far from any ship) stops with
 :class:`sim_plant.plant.PlantDivergedError`, naming the time.
 """
@@ -60,8 +62,8 @@ from dpcontrol.models.vessels import VesselData, vessel_from_config
 from interfaces.messages import FixQuality
 from sim_plant.environment.spectra import SPECTRA
 from sim_plant.environment.waves import SeaState
-from sim_plant.faults import FAULT_KINDS, GNSS_FAULTS, GYRO_FAULTS, THRUSTER_FAULTS, Fault
-from sim_plant.sensors import PROTOCOLS, SENSOR_KINDS, GnssSpec, GyroSpec, SensorSpec
+from sim_plant.faults import FAULT_KINDS, GNSS_FAULTS, GYRO_FAULTS, ROT_FAULTS, THRUSTER_FAULTS, Fault
+from sim_plant.sensors import PROTOCOLS, SENSOR_KINDS, GnssSpec, GyroSpec, RotSpec, SensorSpec
 from sim_plant.vessel_data import extras_for
 
 # The range of the plant's models, beyond any sea a vessel keeps station in (a value past it is a typo, and
@@ -499,6 +501,15 @@ def _sensors(root: Section, gnss_noise_m: float, gyro_noise_deg: float) -> tuple
                 gst=sec.boolean("gst", True),
                 offset_s=offset,
             )
+        elif kind == "rot":
+            spec = RotSpec(
+                name=name, protocol=protocol,
+                rate_hz=sec.number("rate_hz", 10.0, minimum=0.0, exclusive_minimum=True, maximum=200.0),
+                noise_radps=math.radians(sec.number("noise_degps", 0.01, minimum=0.0, maximum=MAX_YAW_RATE_DEGPS)),
+                bias_radps=math.radians(sec.number("bias_degps", 0.03, minimum=-MAX_YAW_RATE_DEGPS,
+                                                   maximum=MAX_YAW_RATE_DEGPS)),
+                offset_s=offset,
+            )
         else:
             spec = GyroSpec(
                 name=name, protocol=protocol,
@@ -524,6 +535,7 @@ _FAULT_PARAMS: dict[str, tuple[str, ...]] = {
     "gnss_noise": ("factor",),
     "gyro_offset": ("offset_deg",),
     "gyro_drift": ("rate_degps",),
+    "rot_offset": ("rate_degps",),
     "malformed_burst": ("count",),
 }
 
@@ -554,6 +566,8 @@ def _faults(root: Section, sensors: tuple[SensorSpec, ...], vessel: VesselData) 
                 raise ConfigError(key_path, f"a gnss sensor for {kind}", target)
             if kind in GYRO_FAULTS and spec.kind != "gyro":
                 raise ConfigError(key_path, f"a gyro sensor for {kind}", target)
+            if kind in ROT_FAULTS and spec.kind != "rot":
+                raise ConfigError(key_path, f"a rot (rate-of-turn) sensor for {kind}", target)
             if kind == "serial_unplug" and spec.protocol != "nmea0183":
                 raise ConfigError(key_path, "a sensor on a serial line (protocol nmea0183) for serial_unplug", target)
             if kind == "heartbeat_loss" and spec.protocol != "mavlink":

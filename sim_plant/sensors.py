@@ -12,12 +12,18 @@ Gyrocompass: heading = ψ_tot + bias + Gauss–Markov error + white noise, wrapp
 as :class:`~interfaces.messages.Heading`; optionally a :class:`~interfaces.messages.RateOfTurn`
 (true total yaw rate + white noise).
 
+Rate-of-turn sensor (``kind: rot``, a rate gyro / ROT indicator: its own device, independent of the
+gyrocompass): rate = total yaw rate + bias + white noise, as :class:`~interfaces.messages.RateOfTurn`
+(NMEA 0183 ``$TIROT``, NMEA 2000 PGN 127251, MAVLink ATTITUDE ``yawspeed``); its faults ``rot_*``
+never touch a gyro's output, nor a gyro's faults its own.
+
 Faults (:mod:`sim_plant.faults`), evaluated at each sample time:
 ``*_dropout`` no output; ``*_invalid`` an :class:`InvalidFix` instead of the message (the emulator
 encodes it as GGA quality 0 / RMC status V / PGN 129029 "no GNSS" / THS mode V / N2K NA);
 ``*_freeze`` the last value repeated (with a running UTC time); ``gnss_jump`` a constant offset;
 ``gnss_drift`` an offset growing at ``rate_mps``; ``gnss_noise`` white noise × ``factor``;
-``gyro_offset`` / ``gyro_drift`` a constant / growing heading error. The random processes keep
+``gyro_offset`` / ``gyro_drift`` a constant / growing heading error; ``rot_offset`` a constant rate error
+(``rot_freeze``, ``rot_dropout``, ``rot_invalid`` as for the others). The random processes keep
 running through faults, so a run is the same whatever the faults.
 
 Sample times are exact: t_k = offset_s + k / rate_hz.
@@ -38,7 +44,7 @@ from interfaces.messages import FixQuality, Heading, PositionErrorStats, Positio
 from sim_plant.faults import Fault
 
 PROTOCOLS: tuple[str, ...] = ("nmea0183", "nmea2000", "mavlink")
-SENSOR_KINDS: tuple[str, ...] = ("gnss", "gyro")
+SENSOR_KINDS: tuple[str, ...] = ("gnss", "gyro", "rot")
 SECONDS_PER_DAY = 86400.0
 
 
@@ -48,9 +54,9 @@ class InvalidFix:
 
     Attributes
     ----------
-    kind : {"position", "heading"}
+    kind : {"position", "heading", "rate"}
     reason : str
-        The fault that caused it (``gnss_invalid``, ``gyro_invalid``).
+        The fault that caused it (``gnss_invalid``, ``gyro_invalid``, ``rot_invalid``).
     utc_time_s : float or None
         Seconds since midnight UTC.
     lat_deg, lon_deg : float or None
@@ -171,7 +177,37 @@ class GyroSpec:
     kind = "gyro"
 
 
-SensorSpec = GnssSpec | GyroSpec
+@dataclass(frozen=True)
+class RotSpec:
+    """A rate-of-turn sensor (scenario ``sensors`` entry, ``kind: rot``): a rate gyro with its own
+    electronics, independent of the gyrocompass; rates in rad/s.
+
+    The defaults are of a marine MEMS/FOG rate sensor's data sheet (e.g. a ROT indicator's rate
+    gyro): white noise 0.01 °/s 1-σ per sample at 10 Hz, a turn-on bias of a few 0.01 °/s.
+
+    Attributes
+    ----------
+    name, protocol : str
+    rate_hz : float
+        Output rate (10 Hz typical).
+    noise_radps : float
+        White noise 1-σ of one sample [rad/s].
+    bias_radps : float
+        Constant bias [rad/s] (what the controller estimates against the gyrocompass).
+    offset_s : float
+    """
+
+    name: str
+    protocol: str = "nmea0183"
+    rate_hz: float = 10.0
+    noise_radps: float = math.radians(0.01)
+    bias_radps: float = math.radians(0.03)
+    offset_s: float = 0.0
+
+    kind = "rot"
+
+
+SensorSpec = GnssSpec | GyroSpec | RotSpec
 
 
 class _Sensor:
@@ -356,3 +392,36 @@ class GyroSensor(_Sensor):
         if spec.rate_of_turn:
             out.append(SensorSample(t_s, self.name, self.protocol, RateOfTurn(rate)))
         return out
+
+
+class RotSensor(_Sensor):
+    """A rate-of-turn sensor (see the module docstring): its own noise stream and faults."""
+
+    def __init__(self, spec: RotSpec, rng: np.random.Generator, faults: Sequence[Fault] = (),
+                 utc_start_s: float = 0.0) -> None:
+        super().__init__(spec, rng, faults, utc_start_s)
+        self.rot = spec
+        self._last: float | None = None
+
+    def sample(self, t_s: float, heading_rad: float, yaw_rate_radps: float) -> list[SensorSample]:
+        """Samples at ``t_s`` from the TOTAL yaw rate [rad/s] (``heading_rad`` unused: the gyro's signature, so
+        the plant samples both alike), then schedule the next."""
+        del heading_rad
+        spec = self.rot
+        self._advance_schedule()
+        (white,) = self._normals(1)  # drawn every sample: faults do not shift the stream
+        active = self._active(t_s)
+        kinds = {f.kind for f in active} if active else ()
+        if "rot_dropout" in kinds:
+            return []
+        error = 0.0
+        for f in active:
+            if f.kind == "rot_offset":
+                error += f.rate_radps
+        rate = yaw_rate_radps + spec.bias_radps + spec.noise_radps * white + error
+        if "rot_freeze" in kinds and self._last is not None:
+            rate = self._last
+        if "rot_invalid" in kinds:
+            return [SensorSample(t_s, self.name, self.protocol, InvalidFix("rate", "rot_invalid", self._utc(t_s)))]
+        self._last = rate
+        return [SensorSample(t_s, self.name, self.protocol, RateOfTurn(rate))]

@@ -265,6 +265,11 @@ def _parse_route(section: Section, transports: Mapping[str, TransportConfig]) ->
         sigma = section.number("sigma_m", 1.0, minimum=0.0, exclusive_minimum=True)
         arm = section.vector("lever_arm_m", 2, [0.0, 0.0])
         lever = (float(arm[0]), float(arm[1]))
+    elif kind is SensorKind.RATE:
+        # a rate-of-turn sensor: the white noise of one sample, from its data sheet [°/s]
+        sigma = math.radians(section.number("sigma_degps", 0.05, minimum=0.0, exclusive_minimum=True,
+                                            maximum=30.0))
+        lever = (0.0, 0.0)
     else:
         sigma = math.radians(section.number("sigma_deg", 0.2, minimum=0.0, exclusive_minimum=True))
         lever = (0.0, 0.0)
@@ -277,7 +282,7 @@ def _parse_route(section: Section, transports: Mapping[str, TransportConfig]) ->
         if protocol != "nmea0183":
             raise ConfigError(f"{section.path}.sentences", "sentences only on an nmea0183 transport", protocol)
         sentences = tuple(s for _, s in section.items("sentences", min_items=1))
-        known = ("GGA", "GNS", "RMC", "GLL", "GST", "HDT", "THS", "ROT")
+        known = ("ROT",) if kind is SensorKind.RATE else ("GGA", "GNS", "RMC", "GLL", "GST", "HDT", "THS", "ROT")
         for where, value in section.items("sentences"):
             if value not in known:
                 raise ConfigError(where, "one of " + ", ".join(known), value)

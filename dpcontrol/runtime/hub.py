@@ -40,6 +40,24 @@ never sees a jump:
   (dead-reckoned) prediction: the offset is the running mean of prediction − fused value over
   ``readmit_s``, then faded out over ``switch_blend_s``.
 
+**Heading dead reckoning on the rate of turn.** A rate of turn (a ``rate_of_turn`` sensor: a rate gyro
+independent of the gyrocompasses; or a heading sensor's own ROT) is a *source* while it is fresh (a sample
+within ``stale_periods`` × its period), not frozen (its value changed within ``rot_freeze_s``, and within
+``freeze_window_s`` if that is shorter: a rate gyro's noise changes every sample) and in range (``|r| ≤
+rot_max``). While the heading is measured, each source's bias is learnt: b̂ ← b̂ + α((∫r dt − Δψ)/Δt − b̂)
+between consecutive fresh fused headings, α = Δt / ``rot_bias_window_s`` (a running mean until a window has
+passed). The differences of the heading noise telescope, so b̂'s error is ≈ σ_ψ/window + σ_r·√(T_s/window): 0.001
+°/s for a 0.05° gyro over 60 s, against a rate gyro's turn-on bias of a few 0.01 °/s and its minutes-long bias
+stability. From the last fresh heading on the hub integrates ψ_dr = ψ(t₀) + ∫(r − b̂)dt (ψ(t₀): that heading
+combined with the estimator's prediction) with the first valid source whose bias has been learnt (rate sensors
+first, in the configured order, then heading sensors' own). With every heading reference lost and a
+source valid, ψ_dr is the heading measurement the estimator gets, with variance σ²_dr = σ²(t₀) + σ_r²T_s·τ +
+(σ_b·τ)² (the rate noise's random walk and the bias uncertainty, τ = time since t₀): the estimators run
+steady-state gains, so ψ_dr is fed as ŷ + S/(S + σ²_dr)·(ψ_dr − ŷ) (S the heading innovation variance), which is
+the Kalman update with R + σ²_dr; and σ²_dr replaces the model's growth of the prediction test's variance. A gyro
+coming back is blended in from the dead-reckoned prediction as after any loss. Without a valid source (the gyro's
+own ROT froze or fell silent with it) nothing changes: the model carries the heading.
+
 The hub is pure: time is the ``t_s`` argument; no clock, no I/O.
 """
 
@@ -68,6 +86,7 @@ class SensorKind(str, Enum):
 
     POSITION = "position"
     HEADING = "heading"
+    RATE = "rate_of_turn"  # a rate gyro, independent of the gyrocompasses: heading dead reckoning only
 
 
 class SensorState(str, Enum):
@@ -99,7 +118,7 @@ class SensorConfig:
     nominal_rate_hz : float
         Expected update rate [Hz] (drop-out detection).
     sigma : float
-        Nominal 1-σ noise [m] for position, [rad] for heading.
+        Nominal 1-σ noise [m] for position, [rad] for heading, [rad/s] for a rate of turn.
     lever_arm_m : tuple of float
         Antenna position in the body frame (x forward, y starboard) [m]; position sensors only.
     """
@@ -136,6 +155,14 @@ class HubConfig:
     readmit_s: float = 5.0
     error_rate_alarm: float = 0.2  # share of malformed frames on a transport (transport_health.py)
     error_rate_window_s: float = 10.0
+    # Heading dead reckoning on the rate of turn (module docstring): the bias average's window [s], the time a
+    # rate may stay unchanged before it counts as frozen [s], the physical range of a ship's rate of turn [rad/s]
+    # (CyberShip II, a 1:70 model, turns √70 times faster than a ship), and the noise of a heading sensor's own
+    # rate of turn, which its configuration does not give [rad/s]
+    rot_bias_window_s: float = 60.0
+    rot_freeze_s: float = 1.0
+    rot_max_radps: float = math.radians(30.0)
+    rot_sigma_radps: float = math.radians(0.05)
 
 
 @dataclass(eq=False, slots=True)
@@ -181,6 +208,7 @@ class _SensorTrack:
     variance_alpha: float = field(init=False, default=0.0)  # EWMA weight of the variance test [-]
     # the other references of its kind, in the configured order (the variance test's comparison)
     peers: list[_SensorTrack] = field(init=False, default_factory=list)
+    rate: _RateSource | None = field(init=False, default=None)  # a heading sensor's own rate of turn
 
     def __post_init__(self, limits: HubConfig) -> None:
         config = self.config
@@ -193,6 +221,46 @@ class _SensorTrack:
         self.gst_valid_s = 3.0 * limits.stale_periods * period
         self.continuity_s = 2.5 * period
         self.variance_alpha = min(1.0, period / limits.variance_time_constant_s)
+
+
+@dataclass(eq=False, slots=True)
+class _RateSource:
+    """A rate of turn the heading can be dead-reckoned on: a ``rate_of_turn`` sensor, or a heading sensor's own
+    (``owner``). Its validity tests and its bias estimate (module docstring)."""
+
+    name: str
+    sigma_radps: float  # white noise of one sample [rad/s]
+    period_s: float  # nominal sample period [s]
+    stale_s: float  # no sample for this long → stale [s]
+    owner: _SensorTrack | None = None  # the heading sensor it belongs to (None: a rate sensor of its own)
+    value: float = 0.0  # the latest in-range sample [rad/s]
+    last_t_s: float | None = None  # receive time of that sample
+    changed_t_s: float = -math.inf  # when its value last changed (freeze test) [s]
+    samples: int = 0
+    rejected_samples: int = 0  # out of range
+    disconnected: bool = False
+    state: SensorState = SensorState.WAITING
+    bias: float = 0.0  # estimated bias [rad/s]
+    bias_time_s: float = 0.0  # heading time the bias has averaged [s]
+    bias_heading_var: float = 0.0  # variance of the fused heading it was learnt against [rad²]
+    chain_heading: float | None = None  # fused heading at the start of the current bias span (None: no span)
+    chain_t_s: float = 0.0
+    chain_integral: float = 0.0  # ∫ r dt since chain_t_s [rad]
+
+    def valid(self, t_s: float, freeze_s: float) -> bool:
+        """Fresh, not frozen, not disconnected (a sample out of range never becomes the value)."""
+        last = self.last_t_s
+        owner = self.owner
+        return last is not None and t_s - last <= self.stale_s and t_s - self.changed_t_s < freeze_s \
+            and not self.disconnected and (owner is None or not owner.disconnected)
+
+    def bias_variance(self, window_s: float) -> float:
+        """Variance of the bias estimate [rad²/s²]: the heading's noise over the averaged time (its differences
+        telescope) and the rate noise averaged over it; infinite before any heading was compared."""
+        span = min(self.bias_time_s, window_s)
+        if span <= 0.0:
+            return math.inf
+        return 2.0 * self.bias_heading_var / (span * span) + self.sigma_radps ** 2 * self.period_s / span
 
 
 def _healthy(tracks: list[_SensorTrack], t_s: float) -> list[_SensorTrack]:
@@ -234,6 +302,11 @@ class HubOutput:
         1-σ of the fused position [m] (inverse-variance combination).
     yaw_rate_radps : float or None
         Latest rate of turn from a heading sensor [rad/s].
+    heading_rate_source : str or None
+        With every heading reference lost: the rate of turn the heading is dead-reckoned on (a sensor name,
+        or ``<heading sensor> rate of turn``); None while a reference is in use or the model carries it.
+    heading_dr_sigma_rad : float
+        1-σ of that dead-reckoned heading [rad] (0 when not dead-reckoning on a rate of turn).
     position_reset, heading_reset : bool
         Every reference of that kind has failed the prediction test for ``reject_persist_s``: the
         references agree with each other, so the *estimate* is wrong (e.g. after long dead
@@ -248,6 +321,8 @@ class HubOutput:
     heading_lost_s: float = 0.0
     position_sigma_m: float = math.inf
     yaw_rate_radps: float | None = None
+    heading_rate_source: str | None = None
+    heading_dr_sigma_rad: float = 0.0
     position_reset: bool = False
     heading_reset: bool = False
 
@@ -278,12 +353,32 @@ class SensorHub:
         self.config = config
         self.alarms = alarms
         self.datum = datum
-        self._tracks: dict[str, _SensorTrack] = {s.name: _SensorTrack(s, config) for s in sensors}
+        self._tracks: dict[str, _SensorTrack] = {s.name: _SensorTrack(s, config) for s in sensors
+                                                 if s.kind is not SensorKind.RATE}
         self._all = list(self._tracks.values())
         self._position = [t for t in self._all if not t.heading]
         self._heading = [t for t in self._all if t.heading]
         for track in self._all:
             track.peers = [t for t in self._all if t is not track and t.heading is track.heading]
+        # rate-of-turn sources, in the order they are preferred: rate sensors, then heading sensors' own
+        self._rate_sensors = {s.name: _RateSource(s.name, s.sigma, 1.0 / s.nominal_rate_hz,
+                                                  config.stale_periods / s.nominal_rate_hz)
+                              for s in sensors if s.kind is SensorKind.RATE}
+        for track in self._heading:
+            track.rate = _RateSource(f"{track.name} rate of turn", config.rot_sigma_radps, track.nominal_period_s,
+                                     track.stale_s, owner=track)
+        self._rates = [*self._rate_sensors.values(), *(t.rate for t in self._heading if t.rate is not None)]
+        # the heading dead-reckoned from the last fresh fused heading (None: no valid rate since), when, its
+        # variance at the anchor and the rate noise's random walk since [rad²], the bias error's share [rad]
+        self._dr_heading: float | None = None
+        self._dr_t0_s = 0.0
+        self._dr_var0 = 0.0
+        self._dr_noise_var = 0.0
+        self._dr_bias_sd = 0.0
+        self._rot_dr_variance: float | None = None  # σ²_dr fed at the last update (None: not on a rate of turn)
+        self._heading_raw = 0.0  # the fused heading without the bumpless offset [rad]
+        self._heading_weight = 0.0  # Σ inverse variances of the headings fused [1/rad²]
+        self._heading_chain_break = False  # the set of headings fused changed: no bias span across it
         self._out = HubOutput()
         # the references fused at the last step, in the configured order (empty: none of the kind in use)
         self._position_used: list[_SensorTrack] = []
@@ -308,6 +403,10 @@ class SensorHub:
         self._base_variance: Sequence[float] | None = None  # this update's prediction variance before any growth
         self._lone_alarms: set[str] = set()  # <kind>.reference_rejected raised (see _lone_accepted)
         self._freeze_limit_s = config.freeze_window_s - 1e-9
+        # A rate is frozen no later than a heading sent with it: a gyro's own ROT that froze with its heading is
+        # never integrated past the moment the heading is declared frozen (CyberShip II's Froude-scaled window,
+        # 0.6 s, is shorter than rot_freeze_s)
+        self._rot_freeze_s = min(config.rot_freeze_s, self._freeze_limit_s)
         self._decay_dt = -1.0  # the period the bumpless offsets' decay factor was computed for [s]
         self._decay = 1.0
 
@@ -317,6 +416,9 @@ class SensorHub:
         track = self._tracks.get(name)
         if track is not None:
             track.disconnected = disconnected
+        rate = self._rate_sensors.get(name)
+        if rate is not None:
+            rate.disconnected = disconnected
 
     def update(self, t_s: float, measurements: Iterable[Measurement], predicted_y_n: Sequence[float] | None,
                predicted_variance: Sequence[float] | None, velocity_n: Sequence[float] | None = None) -> HubOutput:
@@ -348,26 +450,7 @@ class SensorHub:
         if predicted_variance is not None and \
                 (self._position_lost_since is not None or self._heading_lost_since is not None):
             predicted_variance = self._dead_reckoning_variance(t_s, predicted_variance)
-        tracks = self._tracks
-        for measurement in measurements:
-            track = tracks.get(measurement.source)
-            if track is None:
-                self.unknown_sources += 1
-                continue
-            message = measurement.message
-            if track.heading:
-                if isinstance(message, Heading):
-                    self._common_tests(track, measurement.t_s, (ssa(message.heading_rad), 0.0), predicted_y_n,
-                                       predicted_variance)
-                elif isinstance(message, RateOfTurn):
-                    self._yaw_rate = message.rate_radps
-            elif isinstance(message, PositionFix):
-                self._ingest_position(track, measurement.t_s, message, predicted_y_n, predicted_variance)
-            elif isinstance(message, PositionErrorStats):
-                sigma = _gst_sigma(message.sigma_north_m, message.sigma_east_m)
-                if sigma is not None:
-                    track.gst_sigma = sigma
-                    track.gst_t_s = measurement.t_s
+        self._ingest(measurements, predicted_y_n, predicted_variance)
         out = self._out
         if self._rejecting:  # (nothing to search for otherwise: the usual case)
             out.position_reset = self._all_rejecting(self._position, t_s)
@@ -405,8 +488,40 @@ class SensorHub:
         head_new = self._fuse_heading(t_s, None if out.heading_reset else predicted_y_n, healthy_heading)
         out.measured = (pos_new, pos_new, head_new)
         out.yaw_rate_radps = self._yaw_rate
+        if self._rates:
+            self._rate_of_turn(t_s, dt, head_new, predicted_y_n)
         self._availability(t_s)
         return out
+
+    def _ingest(self, measurements: Iterable[Measurement], predicted_y_n: Sequence[float] | None,
+                predicted_variance: Sequence[float] | None) -> None:
+        """Each measurement to its reference's tests (or its rate source), in receive order."""
+        tracks = self._tracks
+        for measurement in measurements:
+            track = tracks.get(measurement.source)
+            message = measurement.message
+            if track is None:
+                rate = self._rate_sensors.get(measurement.source)
+                if rate is not None and isinstance(message, RateOfTurn):
+                    self._ingest_rate(rate, measurement.t_s, message.rate_radps)
+                else:
+                    self.unknown_sources += 1
+                continue
+            if track.heading:
+                if isinstance(message, Heading):
+                    self._common_tests(track, measurement.t_s, (ssa(message.heading_rad), 0.0), predicted_y_n,
+                                       predicted_variance)
+                elif isinstance(message, RateOfTurn):
+                    self._yaw_rate = message.rate_radps
+                    if track.rate is not None:
+                        self._ingest_rate(track.rate, measurement.t_s, message.rate_radps)
+            elif isinstance(message, PositionFix):
+                self._ingest_position(track, measurement.t_s, message, predicted_y_n, predicted_variance)
+            elif isinstance(message, PositionErrorStats):
+                sigma = _gst_sigma(message.sigma_north_m, message.sigma_east_m)
+                if sigma is not None:
+                    track.gst_sigma = sigma
+                    track.gst_t_s = measurement.t_s
 
     def _dead_reckoning_variance(self, t_s: float, variance: Sequence[float]) -> tuple[float, float, float]:
         """The prediction's variance grown while a kind is dead-reckoned: + (drift × time lost)² [m², rad²].
@@ -424,10 +539,143 @@ class SensorHub:
             grown = cfg.dead_reckoning_drift_mps * (t_s - self._position_lost_since)
             v0 += grown * grown
             v1 += grown * grown
-        if self._heading_lost_since is not None:
+        if self._rot_dr_variance is not None:  # on a rate of turn: its own, smaller growth (module docstring)
+            v2 += self._rot_dr_variance
+        elif self._heading_lost_since is not None:
             grown = cfg.dead_reckoning_drift_radps * (t_s - self._heading_lost_since)
             v2 += grown * grown
         return v0, v1, v2
+
+    # ------------------------------------------------------------------ rate of turn
+    def _ingest_rate(self, rate: _RateSource, t_s: float, value: float) -> None:
+        """One rate-of-turn sample [rad/s]: out of the physical range (or not finite) it is rejected, else it is
+        the source's value; an unchanged value keeps the source alive but not its freeze test."""
+        rate.samples += 1
+        if not abs(value) <= self.config.rot_max_radps:  # (NaN fails too)
+            rate.rejected_samples += 1
+            return
+        if value != rate.value or rate.last_t_s is None:
+            rate.changed_t_s = t_s
+        rate.value = value
+        rate.last_t_s = t_s
+
+    def _rate_of_turn(self, t_s: float, dt: float, head_new: bool, predicted: Sequence[float] | None) -> None:
+        """Validity and bias of every rate source, the heading integrated from the last fresh one, and — with
+        every heading reference lost — that heading given to the estimator (module docstring)."""
+        cfg = self.config
+        freeze_s = self._rot_freeze_s
+        heading_used = bool(self._heading_used)
+        measured = heading_used and head_new
+        if self._heading_chain_break or not heading_used:  # no bias span across a switch or a loss
+            self._heading_chain_break = False
+            for rate in self._rates:
+                rate.chain_heading = None
+        source: _RateSource | None = None
+        for rate in self._rates:
+            valid = rate.valid(t_s, freeze_s)
+            if rate.owner is None:
+                self._rate_state(rate, t_s, valid)
+            if not valid:
+                rate.chain_heading = None
+                continue
+            if source is None and rate.bias_time_s > 0.0:  # (a rate never compared with a heading is not used)
+                source = rate
+            if heading_used:
+                self._learn_bias(rate, t_s, dt, measured)
+        out = self._out
+        if measured:
+            self._anchor_dead_reckoning(t_s, predicted)
+        elif source is None:
+            self._dr_heading = None
+        elif self._dr_heading is not None:
+            self._dr_heading += (source.value - source.bias) * dt
+            self._dr_noise_var += source.sigma_radps ** 2 * max(source.period_s, dt) * dt
+            self._dr_bias_sd += math.sqrt(source.bias_variance(cfg.rot_bias_window_s)) * dt
+        if heading_used or source is None or predicted is None:
+            self._rot_dr_variance = None
+            out.heading_rate_source = None
+            out.heading_dr_sigma_rad = 0.0
+            return
+        self._feed_dead_reckoning(source, t_s, predicted)
+
+    def _anchor_dead_reckoning(self, t_s: float, predicted: Sequence[float] | None) -> None:
+        """A fresh fused heading: the dead reckoning starts again from it, combined with the estimator's prediction
+        (prior variance P = S − R, the measurement's R = 1/Σw): one gyro sample's noise (0.05°) would otherwise
+        stay in the dead-reckoned heading as an offset, where the filtered estimate is within a few 0.01°."""
+        measured = self._out.y_n[2]
+        noise = 1.0 / self._heading_weight
+        base = self._base_variance
+        if predicted is None or base is None:
+            self._dr_heading = measured
+            self._dr_var0 = noise
+        else:
+            prior = max(base[2] - noise, 0.0)
+            gain = prior / (prior + noise)
+            self._dr_heading = predicted[2] + gain * ssa(measured - predicted[2])
+            self._dr_var0 = gain * noise
+        self._dr_t0_s = t_s
+        self._dr_noise_var = self._dr_bias_sd = 0.0
+
+    def _learn_bias(self, rate: _RateSource, t_s: float, dt: float, measured: bool) -> None:
+        """Integrate ``rate`` over this period and, at a fresh fused heading, average (∫r dt − Δψ)/Δt into its
+        bias (weight Δt / ``rot_bias_window_s``, a running mean over the first window)."""
+        rate.chain_integral += rate.value * dt
+        if not measured:
+            return
+        heading = self._heading_raw
+        start = rate.chain_heading
+        if start is not None:
+            span = t_s - rate.chain_t_s
+            if span > 0.0:
+                sample = (rate.chain_integral - ssa(heading - start)) / span
+                rate.bias_time_s += span
+                alpha = min(1.0, span / min(self.config.rot_bias_window_s, rate.bias_time_s))
+                rate.bias += alpha * (sample - rate.bias)
+                rate.bias_heading_var = 1.0 / self._heading_weight
+        rate.chain_heading = heading
+        rate.chain_t_s = t_s
+        rate.chain_integral = 0.0
+
+    def _feed_dead_reckoning(self, source: _RateSource, t_s: float, predicted: Sequence[float]) -> None:
+        """Every heading reference lost, ``source`` valid: the dead-reckoned heading is this period's heading
+        measurement, weighted by its grown variance against the estimator's innovation variance."""
+        out = self._out
+        if self._dr_heading is None:  # no valid rate since the last fresh heading: start from the estimate
+            self._dr_heading = predicted[2]
+            self._dr_t0_s = t_s
+            base = self._base_variance
+            self._dr_var0 = base[2] if base is not None else 0.0
+            self._dr_noise_var = self._dr_bias_sd = 0.0
+        variance = self._dr_var0 + self._dr_noise_var + self._dr_bias_sd * self._dr_bias_sd
+        base = self._base_variance
+        innovation = base[2] if base is not None else variance
+        weight = innovation / (innovation + variance) if innovation + variance > 0.0 else 1.0
+        out.y_n[2] = ssa(predicted[2] + weight * ssa(self._dr_heading - predicted[2]))
+        out.measured = (out.measured[0], out.measured[1], True)
+        out.heading_rate_source = source.name
+        out.heading_dr_sigma_rad = math.sqrt(variance)
+        self._rot_dr_variance = variance
+
+    def _rate_state(self, rate: _RateSource, t_s: float, valid: bool) -> None:
+        """A rate sensor's state for the status, with its ``sensor.<name>.<state>`` warning when it changes."""
+        if valid:
+            state = SensorState.OK
+        elif rate.disconnected:
+            state = SensorState.DISCONNECTED
+        elif rate.last_t_s is None:
+            state = SensorState.WAITING
+        elif t_s - rate.last_t_s > rate.stale_s:
+            state = SensorState.STALE
+        else:
+            state = SensorState.FROZEN
+        previous = rate.state
+        if state is previous:
+            return
+        rate.state = state
+        for alarm_state in (previous, state):
+            if alarm_state in _ALARM_STATES:
+                self.alarms.set(t_s, f"sensor.{rate.name}.{alarm_state.value}", state is alarm_state,
+                                Severity.WARNING, f"{rate.name}: rate of turn {alarm_state.value}")
 
     def _nominal_sigma(self, track: _SensorTrack) -> float:
         """1-σ the sensor claims: recent GST statistics, else the configured noise."""
@@ -875,12 +1123,15 @@ class SensorHub:
             if track.fresh:
                 fresh = True
         heading = ref + sum(terms) / total
+        self._heading_raw = heading
+        self._heading_weight = total
         in_use = self._heading_used
         if in_use and usable != in_use:
             old_level = self._level(in_use, heading=True)
             new_level = self._level(usable, heading=True)
             if old_level is not None and new_level is not None:
                 self._heading_offset += ssa(old_level[0] - new_level[0])
+            self._heading_chain_break = True
         elif not in_use and anchor is not None and self._heading_lost_since is not None and self._heading_seen:
             self._heading_anchor_samples = 0
             self._heading_anchor_until_t_s = t_s + self.config.readmit_s
@@ -922,7 +1173,19 @@ class SensorHub:
             rows.append({"name": track.name, "kind": track.config.kind.value, "state": track.state.value,
                          "age_s": age, "weight": round(track.weight, 4), "sigma": self._sigma(track),
                          "samples": track.samples, "rejected": track.rejected_samples, "detail": track.detail})
+        source = self._out.heading_rate_source
+        for rate in self._rate_sensors.values():
+            age = None if rate.last_t_s is None else round(t_s - rate.last_t_s, 3)
+            detail = f"bias {math.degrees(rate.bias):.3f} deg/s" if rate.bias_time_s > 0.0 else ""
+            rows.append({"name": rate.name, "kind": SensorKind.RATE.value, "state": rate.state.value, "age_s": age,
+                         "weight": 1.0 if source == rate.name else 0.0, "sigma": rate.sigma_radps,
+                         "samples": rate.samples, "rejected": rate.rejected_samples, "detail": detail})
         return rows
+
+    def rate_bias(self, name: str) -> float:
+        """The bias estimated for rate source ``name`` (a rate sensor, or ``<heading sensor> rate of turn``)
+        [rad/s]."""
+        return next(rate.bias for rate in self._rates if rate.name == name)
 
     def state_of(self, name: str) -> SensorState:
         return self._tracks[name].state

@@ -17,6 +17,11 @@ Defaults, chosen so that one physical quantity is not counted twice:
   address and/or device NAME (or any source when none is configured);
 * MAVLink: GPS_RAW_INT for position (GLOBAL_POSITION_INT is the autopilot's fused estimate, not a
   reference), ATTITUDE for heading and rate of turn.
+
+A rate of turn (NMEA 0183 ROT, NMEA 2000 127251, MAVLink ATTITUDE ``yawspeed``) goes to a ``rate_of_turn``
+sensor (a rate gyro independent of the gyrocompasses) whose filters match it, else to a heading sensor's
+(its own rate of turn): configure a rate sensor sharing a port, bus or autopilot with a gyrocompass with its
+talker (``TI``), source address or system id, so that it does not take the gyrocompass's rate.
 """
 
 from __future__ import annotations
@@ -29,6 +34,7 @@ from interfaces.messages import Heading, PositionErrorStats, PositionFix, RateOf
 
 NMEA_POSITION_DEFAULT = ("GGA", "GNS", "GST")
 NMEA_HEADING_DEFAULT = ("HDT", "THS", "ROT")
+NMEA_RATE_DEFAULT = ("ROT",)
 MAVLINK_POSITION_MESSAGES = ("GPS_RAW_INT",)
 MAVLINK_HEADING_MESSAGES = ("ATTITUDE",)
 _SYSTEM_SEPARATOR = "#"
@@ -107,10 +113,16 @@ class SensorRouter:
         talker, sentence = address[:2], address[2:]
         if address.startswith("P"):  # proprietary: no talker field
             talker, sentence = "", address
-        for route in self._by_transport.get(transport, ()):
-            if route.sensor.kind is not kind:
+        routes = self._by_transport.get(transport, ())
+        if isinstance(message, RateOfTurn):  # a rate sensor's before a heading sensor's (module docstring)
+            routes = sorted(routes, key=lambda r: r.sensor.kind is not SensorKind.RATE)
+        for route in routes:
+            route_kind = route.sensor.kind
+            if route_kind is not kind and not (route_kind is SensorKind.RATE and kind is SensorKind.HEADING
+                                               and isinstance(message, RateOfTurn)):
                 continue
-            allowed = route.sentences or (NMEA_POSITION_DEFAULT if kind is SensorKind.POSITION
+            allowed = route.sentences or (NMEA_POSITION_DEFAULT if route_kind is SensorKind.POSITION
+                                          else NMEA_RATE_DEFAULT if route_kind is SensorKind.RATE
                                           else NMEA_HEADING_DEFAULT)
             if sentence not in allowed and not (sentence == "GST" and kind is SensorKind.POSITION):
                 continue
@@ -124,7 +136,13 @@ class SensorRouter:
         """Sensor for a message from NMEA 2000 ``source_address``, whose device claimed it with ``source_name``
         (its 64-bit NAME, when a 60928 claim was seen): a route with a NAME follows the device to any address."""
         kind = message_kind(message)
-        for route in self._by_transport.get(transport, ()):
+        routes = self._by_transport.get(transport, ())
+        if isinstance(message, RateOfTurn):
+            for route in routes:
+                if (route.sensor.kind is SensorKind.RATE and route.source_address in (None, source_address)
+                        and route.source_name in (None, source_name)):
+                    return route.sensor.name
+        for route in routes:
             if (route.sensor.kind is kind and route.source_address in (None, source_address)
                     and route.source_name in (None, source_name)):
                 return route.sensor.name
@@ -138,7 +156,12 @@ class SensorRouter:
         if msg_name not in allowed:
             self.unrouted += 1
             return None
-        for route in self._by_transport.get(transport, ()):
+        routes = self._by_transport.get(transport, ())
+        if isinstance(message, RateOfTurn):
+            for route in routes:
+                if route.sensor.kind is SensorKind.RATE and route.system_id in (None, system_id):
+                    return route.sensor.name
+        for route in routes:
             if route.sensor.kind is kind and route.system_id in (None, system_id):
                 return route.sensor.name
         self.unrouted += 1

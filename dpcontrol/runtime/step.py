@@ -114,6 +114,16 @@ class StepOutput:
     mode_changes: list[tuple[str, str, str]] = field(default_factory=list)
 
 
+def _heading_dead_reckoning_text(hub: HubOutput) -> str:
+    """The ``heading.dead_reckoning`` alarm's text: what carries the heading (the rate of turn of a named source,
+    with the dead-reckoned heading's 1-σ, or the model) and for how long."""
+    source = hub.heading_rate_source
+    if source is None:
+        return f"no heading reference: heading dead-reckoned on the model for {hub.heading_lost_s:.1f} s"
+    return (f"no heading reference: heading dead-reckoned on the rate of turn ({source}, 1-sigma "
+            f"{math.degrees(hub.heading_dr_sigma_rad):.2f} deg) for {hub.heading_lost_s:.1f} s")
+
+
 @contextlib.contextmanager
 def _section_of_config(section: str, config: DaemonConfig) -> Iterator[None]:
     """Turn a ValueError raised while building from ``section`` into a :class:`ConfigError` naming it."""
@@ -593,8 +603,7 @@ class DpController:
                                f"no heading reference for {hub.heading_lost_s:.1f} s")
             self._heading_lost_alarm = True
             if self.mode is not Mode.STANDBY:
-                self.alarms.raise_(t_s, "heading.dead_reckoning", Severity.ALARM,
-                                   f"no heading reference: heading dead-reckoned for {hub.heading_lost_s:.1f} s")
+                self.alarms.raise_(t_s, "heading.dead_reckoning", Severity.ALARM, _heading_dead_reckoning_text(hub))
         elif self._heading_lost_alarm:
             self.alarms.clear(t_s, "heading.lost")
             self.alarms.clear(t_s, "heading.dead_reckoning")

@@ -41,6 +41,7 @@ VESSELS: dict[str, dict[str, Any]] = {
         "sea": {"hs_m": 1.0, "omega_peak_rad_s": 0.79},
         "current_mps": 0.15, "wind_mps": 6.0,
         "gnss": {"rate_hz": 5, "noise_m": 0.3}, "gyro": {"rate_hz": 10, "noise_deg": 0.05},
+        "rot": {"rate_hz": 10, "noise_degps": 0.01, "bias_degps": 0.03},
         "position_bound_m": 3.0, "heading_bound_deg": 3.0, "jump_m": 10.0, "time_scale": 1.0,
     },
     "cybership2": {
@@ -60,6 +61,8 @@ VESSELS: dict[str, dict[str, Any]] = {
         "sea": {"hs_m": 0.04, "omega_peak_rad_s": 1.2},
         "current_mps": 0.03, "wind_mps": 0.0,
         "gnss": {"rate_hz": 10, "noise_m": 0.01}, "gyro": {"rate_hz": 10, "noise_deg": 0.0057},
+        # the same rate gyro as the ship's (a device is not scaled)
+        "rot": {"rate_hz": 10, "noise_degps": 0.01, "bias_degps": 0.03},
         "position_bound_m": 3.0 / SCALE_CS2, "heading_bound_deg": 3.0, "jump_m": 10.0 / SCALE_CS2,
         "time_scale": 1.0 / math.sqrt(SCALE_CS2),
     },
@@ -68,7 +71,7 @@ VESSELS: dict[str, dict[str, Any]] = {
 
 @dataclass(frozen=True)
 class Case:
-    """One run: ``vessel`` (a key of :data:`VESSELS`), ``fault`` (a plant fault kind on gnss1 or gyro1),
+    """One run: ``vessel`` (a key of :data:`VESSELS`), ``fault`` (a plant fault kind on gnss1, gyro1 or rot1),
     ``start_s``/``duration_s`` of the fault, the sea's direction [deg] and Hs factor, the current's direction
     [deg], and the plant's ``seed``."""
 
@@ -83,6 +86,7 @@ class Case:
     after_s: float = 120.0  # run on after the fault ends [s]
     duration_scale: float | None = None  # fault duration factor; None: the vessel's Froude time scale
     controller: dict[str, Any] | None = None  # controller sections merged over the vessel's (e.g. {"hub": {...}})
+    rate_of_turn: bool = False  # a rate-of-turn sensor rot1 (independent of the gyro) besides gnss1 and gyro1
 
     @property
     def fault_duration_s(self) -> float:
@@ -98,7 +102,7 @@ class Case:
         v = VESSELS[self.vessel]
         duration = self.fault_duration_s
         fault: dict[str, Any] = {"t_s": self.start_s, "kind": self.fault, "duration_s": duration,
-                                 "sensor": "gyro1" if self.fault.startswith("gyro") else "gnss1"}
+                                 "sensor": {"gyro": "gyro1", "rot_": "rot1"}.get(self.fault[:4], "gnss1")}
         if self.fault == "gnss_jump":
             fault.update(offset_m=v["jump_m"], direction_deg=45.0)
         elif self.fault == "gnss_drift":
@@ -123,6 +127,8 @@ class Case:
                         {"name": "gyro1", "kind": "gyro", "protocol": "nmea0183", **v["gyro"]}],
             "faults": [fault],
         }
+        if self.rate_of_turn:
+            scenario["sensors"].append({"name": "rot1", "kind": "rot", "protocol": "nmea0183", **v["rot"]})
         if v["wind_mps"]:
             scenario["wind"] = {"speed_mps": v["wind_mps"], "direction_deg": self.sea_direction_deg}
         return scenario

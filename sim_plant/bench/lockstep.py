@@ -49,7 +49,7 @@ from sim_plant.protocol_faults import (
     protocol_fault_actions,
 )
 from sim_plant.scenario import Scenario
-from sim_plant.sensors import GnssSpec, InvalidFix, SensorSample
+from sim_plant.sensors import GnssSpec, InvalidFix, RotSpec, SensorSample
 
 N2K_FIRST_ADDRESS = 100
 HEARTBEAT_PERIOD_S = 1.0  # MAVLink-standard HEARTBEAT rate of the emulated autopilots
@@ -85,6 +85,11 @@ def controller_mapping(scenario: Scenario, overrides: Mapping[str, Any] | None =
         if isinstance(spec, GnssSpec):
             entry.update(kind="position", sigma_m=max(math.hypot(spec.noise_m, spec.markov_m), 1e-3),
                          lever_arm_m=list(spec.lever_arm_m))
+        elif isinstance(spec, RotSpec):
+            # (its own talker, TI: on a port shared with a gyro the gyro's HEROT stays the gyro's)
+            entry.update(kind="rate_of_turn", sigma_degps=max(math.degrees(spec.noise_radps), 1e-4))
+            if spec.protocol == "nmea0183":
+                entry["talker"] = "TI"
         else:
             entry.update(kind="heading", sigma_deg=max(math.degrees(math.hypot(spec.noise_rad, spec.markov_rad)),
                                                        1e-3))
@@ -254,7 +259,8 @@ class _Inputs:
                     self._mav_encoders[key] = MavlinkEncoder(system_id, 1)
                 encoder = MavlinkSensorEncoder(encoder=self._mav_encoders[key])
             self.paths[spec.name] = _SensorPath(route.transport, protocol,
-                                                "position" if isinstance(spec, GnssSpec) else "heading",
+                                                "position" if isinstance(spec, GnssSpec) else
+                                                "rate_of_turn" if isinstance(spec, RotSpec) else "heading",
                                                 encoder, self.stages[route.transport], system_id)
         watched = {route.transport for route in config.routes if protocols[route.transport] == "mavlink"}
         self._heartbeat_watch.extend(self.stages[transport] for transport in sorted(watched))

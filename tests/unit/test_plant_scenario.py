@@ -166,14 +166,18 @@ def test_every_fault_kind_parses(kind) -> None:
         extra["thruster"] = "bow_tunnel_1"
     elif kind.startswith("gyro"):
         extra["sensor"] = "gyro1"
+    elif kind.startswith("rot_"):
+        extra["sensor"] = "rot1"
     elif kind == "heartbeat_loss":
         extra["sensor"] = "gnss2"
     else:
         extra["sensor"] = "gnss1"
     params = {"gnss_jump": {"offset_m": 5.0, "direction_deg": 90}, "gnss_drift": {"rate_mps": 0.1},
               "gnss_noise": {"factor": 3.0}, "gyro_offset": {"offset_deg": 2.0}, "gyro_drift": {"rate_degps": 0.1},
-              "malformed_burst": {"count": 5}}.get(kind, {})
-    scenario = parse_scenario(_fault(kind=kind, duration_s=10, **extra, **params))
+              "rot_offset": {"rate_degps": 0.1}, "malformed_burst": {"count": 5}}.get(kind, {})
+    data = _fault(kind=kind, duration_s=10, **extra, **params)
+    data["sensors"].append({"name": "rot1", "kind": "rot"})
+    scenario = parse_scenario(data)
     fault = scenario.faults[0]
     assert fault.kind == kind and fault.t_s == 5 and fault.end_s == 15
     if kind == "gnss_jump":
