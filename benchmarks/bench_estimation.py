@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from dpcontrol.estimation.config import WaveFilterConfig
+from dpcontrol.estimation.filter_config import WaveFilterConfig
 from dpcontrol.estimation.wave_filter import make_wave_filter
 from dpcontrol.models.vessels import CYBERSHIP2
 

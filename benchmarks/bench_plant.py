@@ -32,9 +32,9 @@ from typing import Any
 
 import numpy as np
 
+from sim_plant.drives import ThrusterCommand
 from sim_plant.plant import Plant
 from sim_plant.scenario import builtin_scenario_path, load_scenario
-from sim_plant.thrusters import ThrusterCommand
 
 STEP_S = 0.1
 WINDOWS = 10

@@ -28,10 +28,10 @@ from bench_zenoh import VESSEL, _full_round_trip
 
 from dpcontrol.platform_info import cpu_times, host_steal
 from interfaces.zenoh import pki
-from interfaces.zenoh.config import ZenohConfig
 from interfaces.zenoh.loopback import free_tcp_port
 from interfaces.zenoh.node import ZenohNode
 from interfaces.zenoh.security import ZenohSecurity
+from interfaces.zenoh.session_config import ZenohConfig
 
 IDENTITIES = {"dp": ("controller",), "drives": ("drives",)}
 

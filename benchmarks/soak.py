@@ -62,7 +62,7 @@ from typing import Any
 import numpy as np
 
 from dpcontrol.runtime.step import Mode, StepOutput
-from dpcontrol.runtime.thrusters import mismatch_limit_n
+from dpcontrol.runtime.thruster_monitor import mismatch_limit_n
 from sim_plant.bench.lockstep import LockstepSimulation, controller_mapping
 from sim_plant.bench.report import expected_detection, first_raise
 from sim_plant.faults import GNSS_FAULTS, GYRO_FAULTS, PROTOCOL_FAULTS, THRUSTER_FAULTS, Fault

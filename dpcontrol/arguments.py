@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 import math
 
-from interfaces.zenoh.config import LOCAL_DAEMON_CONNECT
 from interfaces.zenoh.security import add_tls_arguments
+from interfaces.zenoh.session_config import LOCAL_DAEMON_CONNECT
 
 
 def _number(text: str) -> float:
@@ -40,7 +40,7 @@ def finite_number(text: str) -> float:
 
 def add_zenoh_arguments(parser: argparse.ArgumentParser) -> None:
     """``--vessel``, ``--connect``, ``--listen`` and the TLS options (``--tls-dir``, ``--identity``): how an
-    operator's tool finds a vessel's controller over zenoh. :func:`interfaces.zenoh.config.tool_config` turns
+    operator's tool finds a vessel's controller over zenoh. :func:`interfaces.zenoh.session_config.tool_config` turns
     them into the tool's session configuration."""
     parser.add_argument("--vessel", required=True, help="vessel ID (zenoh keys dp/<vessel>/...)")
     parser.add_argument("--connect", action="append", metavar="ENDPOINT",

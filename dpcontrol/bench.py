@@ -110,8 +110,8 @@ def run_bench(iterations: int = 3000, warmup: int = 200, publish: bool = True) -
     names = [t.name for t in config.vessel.thrusters]
     node = publisher = None
     if publish:
-        from interfaces.zenoh.config import ZenohConfig  # noqa: PLC0415
         from interfaces.zenoh.node import ZenohNode  # noqa: PLC0415
+        from interfaces.zenoh.session_config import ZenohConfig  # noqa: PLC0415
 
         node = ZenohNode(ZenohConfig(mode="peer"), "bench")
         publisher = node.publisher("command")

@@ -49,11 +49,11 @@ import orjson
 from dpcontrol.arguments import add_zenoh_arguments, positive_number
 from dpcontrol.models.vessels import vessel_from_config
 from dpcontrol.setpoint import DEFAULT_TIMEOUT_S, check_request, send_request
-from interfaces.zenoh.config import LOCAL_DAEMON_CONNECT, ZenohConfig, ZenohOpenError, tool_config
 from interfaces.zenoh.keys import ROLES, validate_vessel_id
 from interfaces.zenoh.node import LatestSlot, Received, TopicSubscriber, ZenohNode
 from interfaces.zenoh.schemas import MODES, parse_message
 from interfaces.zenoh.security import is_loopback_host
+from interfaces.zenoh.session_config import LOCAL_DAEMON_CONNECT, ZenohConfig, ZenohOpenError, tool_config
 
 log = logging.getLogger(__name__)
 

@@ -36,11 +36,11 @@ from rich.text import Text
 
 from dpbase.frames import ssa
 from dpcontrol.arguments import add_zenoh_arguments
-from interfaces.zenoh.config import LOCAL_DAEMON_CONNECT, ZenohConfig, ZenohOpenError, tool_config
 from interfaces.zenoh.keys import ROLES, validate_vessel_id
 from interfaces.zenoh.node import AliveState, LatestSlot, Received, TopicSubscriber, ZenohNode
 from interfaces.zenoh.schemas import parse_message
 from interfaces.zenoh.security import ZenohSecurity
+from interfaces.zenoh.session_config import LOCAL_DAEMON_CONNECT, ZenohConfig, ZenohOpenError, tool_config
 
 #: Topics the monitor shows (the operator's own setpoint requests are not displayed).
 MONITOR_TOPICS: tuple[str, ...] = ("estimate", "mmae", "control", "status", "command", "feedback")

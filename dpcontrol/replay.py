@@ -26,7 +26,7 @@ from dpcontrol.runtime.config import DaemonConfig, load_config
 from dpcontrol.runtime.ingest import transport_inputs
 from dpcontrol.runtime.inputs import SensorRouter
 from dpcontrol.runtime.step import DpController
-from dpcontrol.runtime.thrusters import ThrusterFeedback
+from dpcontrol.runtime.thruster_monitor import ThrusterFeedback
 from dpcontrol.service.daemon import request_from_dict
 from interfaces.messages import Measurement
 

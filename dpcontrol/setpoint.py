@@ -28,11 +28,11 @@ from typing import Any, TextIO
 
 from dpcontrol.arguments import add_zenoh_arguments, finite_number, positive_number
 from interfaces.messages import Rejected
-from interfaces.zenoh.config import LOCAL_DAEMON_CONNECT, ZenohConfig, ZenohOpenError, tool_config
 from interfaces.zenoh.keys import validate_vessel_id
 from interfaces.zenoh.node import LatestSlot, Received, ZenohNode
 from interfaces.zenoh.schemas import MODES, parse_message, parse_setpoint, setpoint_payload
 from interfaces.zenoh.security import ZenohSecurity
+from interfaces.zenoh.session_config import LOCAL_DAEMON_CONNECT, ZenohConfig, ZenohOpenError, tool_config
 
 #: Longest wait for the controller's answer by default [s]: a controller answers in the next cycle
 #: (100 ms at 10 Hz); the rest is for zenoh to connect and discover on a loaded computer.

@@ -80,8 +80,9 @@ import numpy as np
 
 from interfaces.messages import FixQuality, Heading, PositionFix, RateOfTurn, SensorMessage
 from interfaces.systemd import SystemdNotifier
-from interfaces.zenoh.config import ZenohConfig
 from interfaces.zenoh.security import ZenohSecurity
+from interfaces.zenoh.session_config import ZenohConfig
+from sim_plant.drives import CommandError, ThrusterCommand
 from sim_plant.hil_config import (
     CanTransport,
     ControllerWiring,
@@ -97,7 +98,6 @@ from sim_plant.plant import Plant
 from sim_plant.protocol_faults import ProtocolFaultAction, protocol_fault_actions
 from sim_plant.scenario import Scenario
 from sim_plant.sensors import SensorSample
-from sim_plant.thrusters import CommandError, ThrusterCommand
 
 log = logging.getLogger(__name__)
 

@@ -1,7 +1,7 @@
 """Fault injections of a scenario (``faults:`` entries), shared by the sensors, drives and emulator.
 
 Physical and sensor faults are implemented by the pure plant (:mod:`sim_plant.sensors`,
-:mod:`sim_plant.thrusters`); protocol-level faults (``malformed_burst``, ``serial_unplug``,
+:mod:`sim_plant.drives`); protocol-level faults (``malformed_burst``, ``serial_unplug``,
 ``heartbeat_loss``) are parsed and validated here and carried out by the emulator.
 """
 

@@ -39,8 +39,8 @@ from urllib.parse import urlsplit
 
 from dpbase.schema import ConfigError, Section, join
 from dpbase.yamlfile import read_yaml_file
-from interfaces.zenoh.config import check_endpoint
 from interfaces.zenoh.keys import validate_vessel_id
+from interfaces.zenoh.session_config import check_endpoint
 from sim_plant.encoding import HEADING_SENTENCES, POSITION_SENTENCES
 from sim_plant.scenario import Scenario
 from sim_plant.sensors import SensorSpec

@@ -39,8 +39,8 @@ from typing import Any
 
 from interfaces.messages import Rejected
 from interfaces.zenoh import schemas
-from interfaces.zenoh.config import ZenohConfig
 from interfaces.zenoh.node import Inbox, LatestSlot, Received, ZenohNode
+from interfaces.zenoh.session_config import ZenohConfig
 from sim_plant.scenario import Setpoint
 
 log = logging.getLogger(__name__)

@@ -4,7 +4,7 @@ Each kernel is the arithmetic of one part of the plant, written as scalar code a
 :mod:`dpbase.jit` for why: 3-vectors, ≤ 8 drives and a few hundred wave components are too small
 for numpy's or the interpreter's per-call cost). The classes keep the configuration, validation and
 the decisions made once per step in Python (:class:`~sim_plant.vessel.DpVesselModel`,
-:class:`~sim_plant.thrusters.ThrusterDrives`, :class:`~sim_plant.environment.waves.WaveField`); one
+:class:`~sim_plant.drives.ThrusterDrives`, :class:`~sim_plant.environment.waves.WaveField`); one
 plant substep is one call of :func:`plant_substep`, one wave evaluation one call of :func:`wave_sums`
 (gusts and current variation: :func:`cosine_sum`).
 
@@ -253,7 +253,7 @@ def rk4_step(x: np.ndarray, model: int, p: np.ndarray, h: float, tx: float, ty: 
 
 @kernel(UniTuple(f8, 3)(f8_2d, f8_2d, i8_2d, i8))
 def drives_force(const: np.ndarray, state: np.ndarray, codes: np.ndarray, skip: int) -> tuple[float, float, float]:
-    """τ_act_b = Σ forces and moments of the delivered thrusts [N, N, N·m] (see :mod:`sim_plant.thrusters`).
+    """τ_act_b = Σ forces and moments of the delivered thrusts [N, N, N·m] (see :mod:`sim_plant.drives`).
 
     F = T (cos α, sin α) with α the fixed angle or the azimuth; a rudder F = (T, T · lift · δ) ahead,
     (T, 0) astern; N = x F_y − y F_x. The delivered thrust is 0 for a ``zero`` failure and −T for
@@ -291,7 +291,7 @@ def drives_force(const: np.ndarray, state: np.ndarray, codes: np.ndarray, skip: 
 @kernel(void(f8_2d, f8_2d, i8_2d, f8_1d, f8, f8))
 def drives_update(const: np.ndarray, state: np.ndarray, codes: np.ndarray, bank: np.ndarray, t: float,
                   h: float) -> None:
-    """Advance every drive over the substep [t, t + h] [s], in place (see :mod:`sim_plant.thrusters`).
+    """Advance every drive over the substep [t, t + h] [s], in place (see :mod:`sim_plant.drives`).
 
     Thrust: T ← T + clip((T_c − T)(1 − e^{−h/τ}), ±ṫ_max h), toward 0 instead of T_c when the drive is
     ``not_ready``, the controller is lost or the command is older than the timeout (the angle then
@@ -341,7 +341,7 @@ def drives_update(const: np.ndarray, state: np.ndarray, codes: np.ndarray, bank:
 @kernel(i8(f8_2d, f8_2d, i8_2d, i8_1d, f8_1d, f8_1d, b1_1d, f8))
 def drives_command(state: np.ndarray, limits: np.ndarray, codes: np.ndarray, order: np.ndarray, thrust: np.ndarray,
                    azimuth: np.ndarray, enabled: np.ndarray, t: float) -> int:
-    """Apply one command per drive, all or nothing (:meth:`sim_plant.thrusters.ThrusterDrives.command_arrays`).
+    """Apply one command per drive, all or nothing (:meth:`sim_plant.drives.ThrusterDrives.command_arrays`).
 
     Entry ``j`` commands drive ``order[j]``: target thrust ``thrust[j]`` saturated to the drive's limits
     (0 when not ``enabled[j]``), target angle ``azimuth[j]`` (wrapped for an azimuth, limited to ±δ_max for a

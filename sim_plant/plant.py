@@ -36,6 +36,7 @@ import numpy as np
 
 from dpbase.frames import ssa
 from dpbase.geodesy import LocalFrame
+from sim_plant.drives import DriveReport, ThrusterCommand, ThrusterDrives
 from sim_plant.environment.current import CurrentModel
 from sim_plant.environment.waves import CALM, SpectrumPeaks, WaveEnvironment, WaveSample
 from sim_plant.environment.wind import WindModel
@@ -43,7 +44,6 @@ from sim_plant.faults import THRUSTER_FAULTS, Fault
 from sim_plant.kernels import NO_DRIVE, plant_substep
 from sim_plant.scenario import Scenario
 from sim_plant.sensors import GnssSensor, GnssSpec, GyroSensor, GyroSpec, RotSensor, SensorSample
-from sim_plant.thrusters import DriveReport, ThrusterCommand, ThrusterDrives
 from sim_plant.vessel import DpVesselModel, ManoeuvringVesselModel, vessel_model
 
 _TOL_S = 1e-9
@@ -242,7 +242,7 @@ class Plant:
 
         Raises
         ------
-        sim_plant.thrusters.CommandError
+        sim_plant.drives.CommandError
             Nothing of an invalid command is applied.
         """
         self.drives.command(t_s, commands)
@@ -251,11 +251,11 @@ class Plant:
     def command_arrays(self, t_s: float, order: np.ndarray, thrust_n: np.ndarray, azimuth_rad: np.ndarray,
                        enabled: np.ndarray) -> None:
         """:meth:`command` from per-drive arrays, entry ``j`` for drive ``order[j]`` (an index into
-        ``drives.names``): see :meth:`sim_plant.thrusters.ThrusterDrives.command_arrays`.
+        ``drives.names``): see :meth:`sim_plant.drives.ThrusterDrives.command_arrays`.
 
         Raises
         ------
-        sim_plant.thrusters.CommandError
+        sim_plant.drives.CommandError
             Nothing of an invalid command is applied.
         """
         self.drives.command_arrays(t_s, order, thrust_n, azimuth_rad, enabled)
@@ -488,7 +488,7 @@ class Plant:
 
     def feedback_values(self) -> tuple[list[float], list[float], list[bool]]:
         """:meth:`feedback` as three lists in ``drives.names`` order (delivered thrust, angle, ready; see
-        :meth:`sim_plant.thrusters.ThrusterDrives.feedback_values`)."""
+        :meth:`sim_plant.drives.ThrusterDrives.feedback_values`)."""
         return self.drives.feedback_values()
 
     def sensor_samples(self, t_s_end: float) -> list[SensorSample]:

@@ -9,10 +9,10 @@
 * :mod:`~dpcontrol.estimation.rpem` — RPEM adaptive-frequency filter (seed 003);
 * :mod:`~dpcontrol.estimation.kalman_bucy` — Kalman–Bucy filter, Blue Lady (seed 004);
 * :mod:`~dpcontrol.estimation.heading` — course-keeping heading filter (seed 002 eqs. (69)–(81));
-* :mod:`~dpcontrol.estimation.config` — :class:`WaveFilterConfig` and the default tuning rule.
+* :mod:`~dpcontrol.estimation.filter_config` — :class:`WaveFilterConfig` and the default tuning rule.
 """
 
-from dpcontrol.estimation.config import WaveFilterConfig
+from dpcontrol.estimation.filter_config import WaveFilterConfig
 from dpcontrol.estimation.rpem import RpemWaveFilter
 from dpcontrol.estimation.wave_filter import (
     BankWaveFilter,

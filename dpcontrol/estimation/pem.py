@@ -41,7 +41,7 @@ from scipy.optimize import minimize
 from scipy.signal import decimate, lfilter, welch
 
 from dpbase.frames import ssa
-from dpcontrol.estimation.config import WaveFilterConfig
+from dpcontrol.estimation.filter_config import WaveFilterConfig
 from dpcontrol.estimation.wave_filter import BankWaveFilter, WaveFilterOutput
 
 #: target sample time of the identification data [s] (wave periods ≥ 3 s: ≥ 6 samples a period)
@@ -201,7 +201,7 @@ class PemWaveFilter:
     body axes and heading, minus the LF estimate) to a record of the last ``pem_window_s``; the first
     identification runs once ``pem_first_s`` of record exist, then one every ``pem_interval_s`` (seed 002:
     20 min). A successful identification rebuilds the filter at (ω̂0, ζ̂) with the identified WF standard
-    deviation (the equal-variance rule of :mod:`~dpcontrol.estimation.config` with σ_wf = σ̂_wf, seed 002's
+    deviation (the equal-variance rule of :mod:`~dpcontrol.estimation.filter_config` with σ_wf = σ̂_wf, seed 002's
     ``Q1 = Q̂_P``), carrying the state over (the LF estimate does not jump).
 
     The output publishes ω̂0 like the MMAE's ω̂ (``omega_hat_rad_s``, and ``omegas_rad_s = (ω̂0,)`` with the

@@ -30,8 +30,8 @@ from typing import Any
 import numpy as np
 
 from dpbase.frames import ssa
-from dpcontrol.estimation.config import WaveFilterConfig
 from dpcontrol.estimation.discretize import discretize, oscillator_discretization
+from dpcontrol.estimation.filter_config import WaveFilterConfig
 from dpcontrol.estimation.kalman import KalmanFilter, is_covariance, solve_prior_covariance
 from dpcontrol.estimation.wave_filter import (
     _HEADING,

@@ -65,9 +65,9 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from dpbase.frames import ssa, ssa_array
-from dpcontrol.estimation.config import WaveFilterConfig
 from dpcontrol.estimation.design_model import DesignModel, StateIndex, dp_design_model
 from dpcontrol.estimation.discretize import discretize
+from dpcontrol.estimation.filter_config import WaveFilterConfig
 from dpcontrol.estimation.kalman import KalmanFilter, SteadyStateFilter, is_covariance, pattern_code, pattern_gains
 from dpcontrol.estimation.kernels import NO_INDEX, bank_correct, bank_outputs, bank_predict, bank_predicted_measurement
 from dpcontrol.estimation.weighting import BandLikelihood, bayes_step, dwsg_step

@@ -21,17 +21,17 @@ from dpcontrol.allocation.allocator import allocator_kwargs_from_mapping
 from dpcontrol.allocation.consequence import FailureGroup
 from dpcontrol.control import CONTROL_KINDS, ControlConfig, control_config_from_mapping
 from dpcontrol.estimation import WaveFilterConfig
-from dpcontrol.estimation.config import DEFAULT_OMEGAS_RAD_S
+from dpcontrol.estimation.filter_config import DEFAULT_OMEGAS_RAD_S
 from dpcontrol.guidance import ReferenceModelConfig, reference_config_from_mapping
 from dpcontrol.models.vessels import VesselData, vessel_from_config
 from dpcontrol.runtime.consequence import ConsequenceSettings
 from dpcontrol.runtime.deviation import DeviationSettings
 from dpcontrol.runtime.hub import HubConfig, SensorConfig, SensorKind
-from dpcontrol.runtime.thrusters import ThrusterMonitorSettings
+from dpcontrol.runtime.thruster_monitor import ThrusterMonitorSettings
 from interfaces.nmea0183.codec import DEFAULT_MAX_SENTENCE_CHARS
 from interfaces.recorder import RecorderSettings
-from interfaces.zenoh.config import ZenohConfig
 from interfaces.zenoh.security import unprotected_endpoints
+from interfaces.zenoh.session_config import ZenohConfig
 
 PROTOCOLS = ("nmea0183", "nmea2000", "mavlink")
 MODES = ("standby", "auto_heading", "auto_position")

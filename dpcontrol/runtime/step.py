@@ -45,7 +45,7 @@ from dpcontrol.runtime.consequence import ConsequenceMonitor, ConsequenceReport
 from dpcontrol.runtime.deviation import DeviationMonitor
 from dpcontrol.runtime.estimators import WAVE_FILTER_KINDS, MassAdaptiveEstimator, make_estimator
 from dpcontrol.runtime.hub import HubOutput, SensorHub
-from dpcontrol.runtime.thrusters import ThrusterFeedback, ThrusterMonitor
+from dpcontrol.runtime.thruster_monitor import ThrusterFeedback, ThrusterMonitor
 from interfaces.messages import Measurement
 
 if TYPE_CHECKING:  # the parser of the daemon's file reads transports and Zenoh settings: the step never loads it

@@ -45,7 +45,7 @@ from dpcontrol.runtime.consequence import ConsequenceReport
 from dpcontrol.runtime.ingest import transport_inputs
 from dpcontrol.runtime.inputs import SensorRouter
 from dpcontrol.runtime.step import RECENT_REQUESTS_S, DpController, Mode, StepOutput
-from dpcontrol.runtime.thrusters import ThrusterFeedback
+from dpcontrol.runtime.thruster_monitor import ThrusterFeedback
 from dpcontrol.runtime.transport_health import InputHealth
 from dpcontrol.service.persist import BackgroundSaver, StateStore
 from dpcontrol.service.replica import ControllerReplica

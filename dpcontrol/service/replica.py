@@ -44,7 +44,7 @@ from dpcontrol.runtime.alarms import AlarmRegistry, Severity
 from dpcontrol.runtime.config import DaemonConfig
 from dpcontrol.runtime.hub import SensorHub
 from dpcontrol.runtime.step import DpController, Mode, StepOutput
-from dpcontrol.runtime.thrusters import ThrusterFeedback
+from dpcontrol.runtime.thruster_monitor import ThrusterFeedback
 from interfaces.messages import LinkStatus, Measurement
 
 log = logging.getLogger(__name__)

@@ -2,7 +2,7 @@
 config queryable and liveliness (docs/design.md §4.4).
 
 * :mod:`interfaces.zenoh.keys` — ``dp/<vessel>/…`` key expressions, vessel ID validation;
-* :mod:`interfaces.zenoh.config` — :class:`ZenohConfig` and :func:`open_session` (peer mode,
+* :mod:`interfaces.zenoh.session_config` — :class:`ZenohConfig` and :func:`open_session` (peer mode,
   explicit endpoints, multicast scouting off);
 * :mod:`interfaces.zenoh.schemas` — every JSON payload schema: builders and validating parsers
   (the pure codec, testable without a transport);
@@ -12,7 +12,6 @@ config queryable and liveliness (docs/design.md §4.4).
 * :mod:`interfaces.zenoh.pki` — the vessel CA and role certificates (``cryptography``).
 """
 
-from interfaces.zenoh.config import ZenohConfig, ZenohOpenError, open_session
 from interfaces.zenoh.keys import ROLES, TOPICS, VesselKeys, validate_vessel_id
 from interfaces.zenoh.node import (
     AliveState,
@@ -27,6 +26,7 @@ from interfaces.zenoh.node import (
     TopicSubscriber,
     ZenohNode,
 )
+from interfaces.zenoh.session_config import ZenohConfig, ZenohOpenError, open_session
 
 __all__ = [
     "ROLES",

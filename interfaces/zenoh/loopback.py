@@ -11,8 +11,8 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-from interfaces.zenoh.config import ZenohConfig, ZenohOpenError
 from interfaces.zenoh.node import Clock, ZenohNode
+from interfaces.zenoh.session_config import ZenohConfig, ZenohOpenError
 
 LOOPBACK = "127.0.0.1"
 

@@ -1,7 +1,7 @@
 """Zenoh transport for one vessel: publishers, validating subscribers, config queryable, liveliness.
 
 A :class:`ZenohNode` holds one session (opened from an explicit
-:class:`~interfaces.zenoh.config.ZenohConfig`) and the entities declared on it. The daemon, the
+:class:`~interfaces.zenoh.session_config.ZenohConfig`) and the entities declared on it. The daemon, the
 plant emulator and the monitor each use one::
 
     node = ZenohNode(ZenohConfig(listen=("tcp/192.168.10.2:7447",)), "supply")
@@ -38,8 +38,8 @@ import zenoh
 
 from interfaces.messages import Rejected
 from interfaces.zenoh import schemas
-from interfaces.zenoh.config import ZenohConfig, open_session
 from interfaces.zenoh.keys import TOPICS, VesselKeys
+from interfaces.zenoh.session_config import ZenohConfig, open_session
 
 log = logging.getLogger(__name__)
 
@@ -483,7 +483,7 @@ class ZenohNode:
     ------
     ValueError
         Invalid vessel ID.
-    interfaces.zenoh.config.ZenohOpenError
+    interfaces.zenoh.session_config.ZenohOpenError
         The session could not be opened.
     """
 

@@ -35,7 +35,7 @@ from dpcontrol.runtime.hub import SensorState
 from dpcontrol.runtime.ingest import Nmea2000Input, TransportInput, transport_inputs
 from dpcontrol.runtime.inputs import SensorRouter
 from dpcontrol.runtime.step import DpController, Mode, StepOutput
-from dpcontrol.runtime.thrusters import ThrusterFeedback
+from dpcontrol.runtime.thruster_monitor import ThrusterFeedback
 from dpcontrol.runtime.transport_health import InputHealth
 from interfaces.mavlink.codec import MavlinkEncoder
 from interfaces.messages import LinkStatus, Measurement, PositionFix

@@ -25,9 +25,9 @@ from dpcontrol.service.daemon import Daemon
 from interfaces.messages import Rejected
 from interfaces.systemd import SystemdNotifier
 from interfaces.zenoh import schemas
-from interfaces.zenoh.config import ZenohConfig
 from interfaces.zenoh.loopback import free_tcp_port
 from interfaces.zenoh.node import ZenohNode
+from interfaces.zenoh.session_config import ZenohConfig
 from sim_plant.bench.lockstep import ProbedRun
 from sim_plant.bench.run import build_simulation
 from sim_plant.scenario import load_scenario

@@ -17,11 +17,11 @@ import pytest
 from dpcontrol.models.vessels import vessel_from_config
 from dpcontrol.runtime.alarms import AlarmRegistry
 from dpcontrol.runtime.config import ThrusterMonitorSettings
-from dpcontrol.runtime.thrusters import ThrusterFeedback, ThrusterMonitor
+from dpcontrol.runtime.thruster_monitor import ThrusterFeedback, ThrusterMonitor
 from sim_plant.bench.lockstep import ProbedRun
 from sim_plant.bench.run import build_simulation
+from sim_plant.drives import ThrusterCommand, ThrusterDrives
 from sim_plant.scenario import load_scenario
-from sim_plant.thrusters import ThrusterCommand, ThrusterDrives
 
 FAULTS = Path(__file__).resolve().parents[2] / "sim_plant" / "scenarios" / "faults"
 DT = 0.1
@@ -129,7 +129,7 @@ def test_case10_capability_shortfall_alarm_when_the_weather_exceeds_what_is_left
 # ------------------------------------------------------------------------------------------ the monitor alone
 def _drive_and_monitor(failure: str | None, load: float, seconds: float = 30.0, seed: int = 4) -> tuple[bool, float]:
     """One supply-vessel tunnel (150 kN) driven by a command fluctuating around ``load`` × its rating, with
-    the plant's drive model (``sim_plant.thrusters.ThrusterDrives``) failing as ``failure`` from 5 s on.
+    the plant's drive model (``sim_plant.drives.ThrusterDrives``) failing as ``failure`` from 5 s on.
     Returns whether the monitor took it out and when."""
 
     spec = next(t for t in vessel_from_config("supply", "vessel").thrusters if t.name == "bow_tunnel_1")

@@ -29,9 +29,9 @@ from typing import Any
 import pytest
 from hil_pair import ROOT, running_pair
 
-from interfaces.zenoh.config import ZenohConfig
 from interfaces.zenoh.loopback import free_tcp_port
 from interfaces.zenoh.node import LatestSlot, ZenohNode
+from interfaces.zenoh.session_config import ZenohConfig
 from sim_plant.cli import main as sim_plant_main
 
 pytestmark = [pytest.mark.hil, pytest.mark.slow]

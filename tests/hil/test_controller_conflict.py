@@ -18,9 +18,9 @@ from status_sink import StatusSink
 from dpcontrol.runtime.config import parse_config
 from dpcontrol.service.daemon import Daemon
 from interfaces.systemd import SystemdNotifier
-from interfaces.zenoh.config import ZenohConfig
 from interfaces.zenoh.loopback import free_tcp_port
 from interfaces.zenoh.node import ZenohNode
+from interfaces.zenoh.session_config import ZenohConfig
 
 pytestmark = pytest.mark.hil
 

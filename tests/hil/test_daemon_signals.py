@@ -16,9 +16,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from interfaces.zenoh.config import ZenohConfig
 from interfaces.zenoh.loopback import free_tcp_port
 from interfaces.zenoh.node import ZenohNode
+from interfaces.zenoh.session_config import ZenohConfig
 
 pytestmark = [pytest.mark.hil, pytest.mark.skipif(os.name != "posix", reason="signals")]
 

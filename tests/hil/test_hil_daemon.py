@@ -24,10 +24,10 @@ from pathlib import Path
 import pytest
 import yaml
 
-from interfaces.zenoh.config import ZenohConfig
 from interfaces.zenoh.node import ZenohNode
 from interfaces.zenoh.pki import IdentityFiles
 from interfaces.zenoh.security import ZenohSecurity
+from interfaces.zenoh.session_config import ZenohConfig
 from sim_plant.bench.demo import _NotifyListener, _spawn, _stop, emulator_command, prepare, write_report
 from sim_plant.scenario import builtin_scenario_path
 

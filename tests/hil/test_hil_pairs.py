@@ -13,8 +13,8 @@ from typing import Any
 import pytest
 from hil_pair import pair_names, running_pair
 
-from interfaces.zenoh.config import ZenohConfig
 from interfaces.zenoh.node import ZenohNode
+from interfaces.zenoh.session_config import ZenohConfig
 
 pytestmark = [pytest.mark.hil, pytest.mark.slow]
 

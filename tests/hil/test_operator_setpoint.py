@@ -24,9 +24,9 @@ from dpcontrol.service.daemon import Daemon
 from dpcontrol.setpoint import run_setpoint
 from interfaces.systemd import SystemdNotifier
 from interfaces.zenoh import schemas
-from interfaces.zenoh.config import ZenohConfig
 from interfaces.zenoh.loopback import free_tcp_port
 from interfaces.zenoh.node import Inbox, ZenohNode
+from interfaces.zenoh.session_config import ZenohConfig
 
 pytestmark = pytest.mark.hil
 

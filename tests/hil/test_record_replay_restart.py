@@ -32,9 +32,9 @@ from dpcontrol.cli import main as dpcontrol_main
 from dpcontrol.logtools import read_records
 from dpcontrol.models.vessels import CYBERSHIP2
 from interfaces.recorder import list_log_files
-from interfaces.zenoh.config import ZenohConfig
 from interfaces.zenoh.loopback import free_tcp_port
 from interfaces.zenoh.node import LatestSlot, ZenohNode
+from interfaces.zenoh.session_config import ZenohConfig
 from sim_plant.bench.demo import _NotifyListener, _spawn, _stop, emulator_command, prepare
 from sim_plant.scenario import builtin_scenario_path
 

@@ -24,10 +24,10 @@ from dpcontrol.runtime.config import parse_config
 from dpcontrol.service.daemon import Daemon
 from interfaces.systemd import SystemdNotifier
 from interfaces.zenoh import pki, schemas
-from interfaces.zenoh.config import ZenohConfig
 from interfaces.zenoh.loopback import free_tcp_port
 from interfaces.zenoh.node import LatestSlot, ZenohNode
 from interfaces.zenoh.security import ZenohSecurity
+from interfaces.zenoh.session_config import ZenohConfig
 
 pytestmark = pytest.mark.hil
 

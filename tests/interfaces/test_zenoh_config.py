@@ -7,9 +7,15 @@ import json
 import pytest
 
 from dpbase.schema import ConfigError
-from interfaces.zenoh.config import ZenohConfig, ZenohOpenError, check_endpoint, listens_everywhere, open_session
 from interfaces.zenoh.loopback import free_tcp_port, loopback_endpoint
 from interfaces.zenoh.node import ZenohNode
+from interfaces.zenoh.session_config import (
+    ZenohConfig,
+    ZenohOpenError,
+    check_endpoint,
+    listens_everywhere,
+    open_session,
+)
 
 
 def _get(config: ZenohConfig, key: str) -> object:

@@ -11,7 +11,6 @@ import pytest
 
 from dpbase.schema import ConfigError
 from interfaces.zenoh import pki
-from interfaces.zenoh.config import ZenohConfig
 from interfaces.zenoh.loopback import free_tcp_port
 from interfaces.zenoh.node import Inbox, LatestSlot, ZenohNode
 from interfaces.zenoh.schemas import command_payload, feedback_payload, setpoint_payload
@@ -21,6 +20,7 @@ from interfaces.zenoh.security import (
     is_loopback,
     unprotected_endpoints,
 )
+from interfaces.zenoh.session_config import ZenohConfig
 
 VESSEL = "sec1"
 IDENTITIES = {"dp": "controller", "drives": "drives", "bridge": "console", "shore": "monitor",

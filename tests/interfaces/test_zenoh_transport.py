@@ -15,10 +15,10 @@ import pytest
 
 from interfaces.messages import Rejected
 from interfaces.zenoh import schemas as sc
-from interfaces.zenoh.config import ZenohConfig
 from interfaces.zenoh.keys import TOPICS
 from interfaces.zenoh.loopback import free_tcp_port, loopback_endpoint, loopback_pair, open_listener
 from interfaces.zenoh.node import Inbox, LatestSlot, ZenohNode, default_parser
+from interfaces.zenoh.session_config import ZenohConfig
 
 TIMEOUT_S = 10.0
 _vessels = itertools.count()

@@ -17,7 +17,7 @@ from dpcontrol.models.thrusters import ThrusterSpec
 from dpcontrol.models.vessels import BUILTIN_VESSELS
 from dpcontrol.runtime.alarms import AlarmRegistry
 from dpcontrol.runtime.config import ThrusterMonitorSettings
-from dpcontrol.runtime.thrusters import ThrusterMonitor
+from dpcontrol.runtime.thruster_monitor import ThrusterMonitor
 
 DT = 0.1
 RATE = math.radians(12.0)

@@ -17,10 +17,10 @@ from dpcontrol.console import (
 )
 from dpcontrol.setpoint import check_request
 from interfaces.zenoh import schemas as sc
-from interfaces.zenoh.config import ZenohConfig
 from interfaces.zenoh.loopback import open_listener
 from interfaces.zenoh.node import ZenohNode
 from interfaces.zenoh.security import is_loopback_host
+from interfaces.zenoh.session_config import ZenohConfig
 
 
 def test_request_fields_take_only_the_setpoint_options_and_finite_numbers() -> None:

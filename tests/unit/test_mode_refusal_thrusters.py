@@ -17,7 +17,7 @@ from dpbase.requests import SetpointRequest
 from dpcontrol.runtime.alarms import Severity
 from dpcontrol.runtime.config import parse_config
 from dpcontrol.runtime.step import DpController, Mode
-from dpcontrol.runtime.thrusters import ThrusterFeedback
+from dpcontrol.runtime.thruster_monitor import ThrusterFeedback
 from interfaces.messages import FixQuality, Heading, Measurement, PositionFix
 
 DT = 0.1

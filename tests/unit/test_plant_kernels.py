@@ -16,6 +16,7 @@ import pytest
 from dpbase.frames import ssa
 from dpcontrol.models.thrusters import ThrusterSpec
 from dpcontrol.models.vessels import BUILTIN_VESSELS, MARINER, SHUTTLE_TANKER, SUPPLY
+from sim_plant.drives import ThrusterCommand, ThrusterDrives
 from sim_plant.environment.rao import HullDimensions, motion_raos
 from sim_plant.environment.spectra import SpectralProcess, gauss_markov_process, realise_waves
 from sim_plant.environment.waves import _BETA_GRID, _BETA_STEPS, WaveField
@@ -33,7 +34,6 @@ from sim_plant.kernels import (
     vessel_derivative,
     wave_sums,
 )
-from sim_plant.thrusters import ThrusterCommand, ThrusterDrives
 from sim_plant.vessel import DpVesselModel, ManoeuvringVesselModel, vessel_model
 
 DP_VESSELS = [v for v in BUILTIN_VESSELS.values() if v.name != "mariner"]
@@ -101,7 +101,7 @@ def _rk4_reference(f, x: list[float], h: float, *a: float) -> list[float]:
 
 
 class _ReferenceDrives:
-    """The drive model in plain Python floats (sim_plant.thrusters before the kernels)."""
+    """The drive model in plain Python floats (sim_plant.drives before the kernels)."""
 
     def __init__(self, specs, timeout_s: float) -> None:
         self.specs = specs

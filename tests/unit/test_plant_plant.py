@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from interfaces.messages import Heading, PositionFix
+from sim_plant.drives import CommandError, ThrusterCommand
 from sim_plant.plant import Plant, PlantDivergedError
 from sim_plant.scenario import builtin_scenario_path, load_scenario, parse_scenario
-from sim_plant.thrusters import CommandError, ThrusterCommand
 
 BASE = {
     "name": "plant-test",

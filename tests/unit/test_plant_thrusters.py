@@ -1,4 +1,4 @@
-"""Thruster drives (sim_plant.thrusters): response, limits, timeout, failures, forces, bad input."""
+"""Thruster drives (sim_plant.drives): response, limits, timeout, failures, forces, bad input."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from dpbase.frames import ssa
 from dpcontrol.models.thrusters import ThrusterSpec
 from dpcontrol.models.vessels import BUILTIN_VESSELS, SUPPLY
-from sim_plant.thrusters import CommandError, ThrusterCommand, ThrusterDrives
+from sim_plant.drives import CommandError, ThrusterCommand, ThrusterDrives
 
 TUNNEL = ThrusterSpec("tunnel", "tunnel", x_m=30.0, y_m=0.0, max_thrust_n=100.0, min_thrust_n=-80.0,
                       thrust_rate_limit_nps=1000.0, time_constant_s=2.0, angle_rad=math.pi / 2)

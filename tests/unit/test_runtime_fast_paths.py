@@ -26,7 +26,7 @@ from dpcontrol.runtime.config import SensorRoute, ThrusterMonitorSettings, Trans
 from dpcontrol.runtime.hub import HubConfig, HubOutput, SensorConfig, SensorHub, SensorKind, _gst_sigma
 from dpcontrol.runtime.inputs import SensorRouter
 from dpcontrol.runtime.step import DpController, Mode
-from dpcontrol.runtime.thrusters import ThrusterFeedback, ThrusterMonitor
+from dpcontrol.runtime.thruster_monitor import ThrusterFeedback, ThrusterMonitor
 from dpcontrol.runtime.transport_health import TransportHealth
 from interfaces.messages import FixQuality, Heading, Measurement, PositionFix, RateOfTurn
 

@@ -1,6 +1,6 @@
 """The thruster monitor's fail-safe behaviours: the absolute floor of the mismatch limit, feedback judged only when
 new, and a drive whose feedback returns after a loss judged afresh (drives or plant restarted) — each fails a test
-here when removed. The plant's drive model (``sim_plant.thrusters.ThrusterDrives``) delivers the thrust."""
+here when removed. The plant's drive model (``sim_plant.drives.ThrusterDrives``) delivers the thrust."""
 
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ import pytest
 from dpcontrol.models.thrusters import ThrusterSpec
 from dpcontrol.runtime.alarms import AlarmRegistry
 from dpcontrol.runtime.config import ThrusterMonitorSettings
-from dpcontrol.runtime.thrusters import ThrusterFeedback, ThrusterMonitor, mismatch_limit_n
-from sim_plant.thrusters import ThrusterCommand, ThrusterDrives
+from dpcontrol.runtime.thruster_monitor import ThrusterFeedback, ThrusterMonitor, mismatch_limit_n
+from sim_plant.drives import ThrusterCommand, ThrusterDrives
 
 DT = 0.1
 SPEC = ThrusterSpec(name="bow", kind="tunnel", x_m=30.0, y_m=0.0, max_thrust_n=1e5, min_thrust_n=-1e5,

@@ -42,7 +42,7 @@ class ThrusterMonitorSettings:
     feedback_timeout_s: float = 2.0
     mismatch_fraction: float = 0.25
     # absolute floor of the mismatch limit, a share of each drive's rating: a drive asked for (almost) nothing is
-    # never judged on noise (see dpcontrol.runtime.thrusters)
+    # never judged on noise (see dpcontrol.runtime.thruster_monitor)
     mismatch_floor_fraction: float = 0.05
     mismatch_persist_s: float = 5.0
     shortfall_fraction: float = 0.1
