@@ -158,6 +158,7 @@ class InputPump:
                                   config.hub.error_rate_window_s)
         self.stages = transport_inputs(config.transports, self.router, self.health, on_raw=self._numbered,
                                        start_t_s=clock(), signing_time_s=time.time())
+        self.decode_errors = 0  # inputs whose decoding raised (counted as rejected; see _decode_failed)
         self._seq = 0  # the last raw input's number (loop thread only)
         # where each raw input of the current drain starts in its measurement list: (index, number)
         self._starts: list[tuple[int, int]] = []
@@ -199,18 +200,15 @@ class InputPump:
         self._out = measurements
         while queue:
             transport, event = queue.popleft()
-            stage = stages[transport]
-            if type(event) is RawInput:
-                stage.feed(event.t_s, event.data, measurements, can_id=event.can_id)
-            elif isinstance(event, LinkStatus):
-                stage.link_changed(event.t_s, event.connected, measurements)
-                links.append(LinkStatus(event.t_s, transport, event.connected, event.detail))
-            elif isinstance(event, RejectedInput):  # a gateway's framing could not read it: no raw input
-                self.health.count(transport, event.t_s, event.rejected.reason)
-                if self.recorder is not None:
-                    self.recorder.record_raw(transport, event.t_s, event.rejected.raw, rejected=event.rejected.reason)
-        for stage in stages.values():
-            stage.poll(t_s, links)
+            try:
+                self._consume(transport, event, measurements, links)
+            except Exception as error:  # (the codecs are fuzzed not to raise: belt and braces for the loop)
+                self._decode_failed(transport, event.t_s, error)
+        for transport, stage in stages.items():
+            try:
+                stage.poll(t_s, links)
+            except Exception as error:
+                self._decode_failed(transport, t_s, error)
         # each measurement's raw input: the last one that started at or before its place in the list
         k = 0
         seq = 0
@@ -219,6 +217,29 @@ class InputPump:
                 seq = starts[k][1]
                 k += 1
             sources.append(seq)
+
+    def _consume(self, transport: str, event: InputEvent, measurements: list[Measurement],
+                 links: list[LinkStatus]) -> None:
+        """One reader event through the transport's input stage."""
+        stage = self.stages[transport]
+        if type(event) is RawInput:
+            stage.feed(event.t_s, event.data, measurements, can_id=event.can_id)
+        elif isinstance(event, LinkStatus):
+            stage.link_changed(event.t_s, event.connected, measurements)
+            links.append(LinkStatus(event.t_s, transport, event.connected, event.detail))
+        elif isinstance(event, RejectedInput):  # a gateway's framing could not read it: no raw input
+            self.health.count(transport, event.t_s, event.rejected.reason)
+            if self.recorder is not None:
+                self.recorder.record_raw(transport, event.t_s, event.rejected.raw, rejected=event.rejected.reason)
+
+    def _decode_failed(self, transport: str, t_s: float, error: Exception) -> None:
+        """A decoder raised on what a sensor sent: the input is counted as rejected (``decode_error``, which the
+        transport's error-rate alarm sees) and the loop goes on with the next one — a sensor's bytes never stop the
+        control step (which would command zero thrust)."""
+        self.decode_errors += 1
+        self.health.count(transport, t_s, "decode_error")
+        if self.decode_errors == 1 or self.decode_errors % 1000 == 0:  # (a flood must not flood the log)
+            log.error("transport %s: decoding raised (%d so far): %r", transport, self.decode_errors, error)
 
     def _numbered(self, transport: str, t_s: float, data: bytes, rejected: str | None,
                   fields: dict[str, Any]) -> None:

@@ -45,6 +45,33 @@ def test_the_input_queue_drops_beyond_its_bound_but_keeps_link_changes() -> None
     assert pump.dropped == 10 and measurements[-1].t_s == 3.0 and sources[-1] == 11
 
 
+def test_a_decoder_that_raises_loses_one_input_not_the_cycle(caplog: pytest.LogCaptureFixture) -> None:
+    """What a sensor sends never stops the control step (a raising step commands zero thrust): the input whose
+    decoding raised is counted as rejected, the others of the same drain are decoded."""
+    pump = InputPump(parse_config(SERIAL), clock=lambda: 0.0)
+    line = encode_hdt(Heading(0.5), "HE")
+    stage = pump.stages["serial0"]
+    real_feed = stage.feed
+    calls = 0
+
+    def feed_that_raises_once(*args: object, **kwargs: object) -> None:
+        nonlocal calls
+        calls += 1
+        if calls == 2:
+            raise RuntimeError("a decoder bug")
+        real_feed(*args, **kwargs)  # type: ignore[arg-type]
+
+    stage.feed = feed_that_raises_once  # type: ignore[method-assign]
+    for k in range(3):
+        pump.received("serial0", RawInput(0.1 * k, line))
+    measurements: list[Measurement] = []
+    with caplog.at_level(logging.ERROR, logger="dpcontrol.service.daemon"):
+        pump.drain(0.3, measurements, [], [])
+    assert [m.t_s for m in measurements] == pytest.approx([0.0, 0.2])
+    assert pump.decode_errors == 1 and pump.health.counters()["serial0"]["reason.decode_error"] == 1
+    assert any("decoding raised" in r.getMessage() for r in caplog.records)
+
+
 def test_a_udp_flood_beyond_the_bound_raises_inputs_overflow_and_control_goes_on(
         monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture) -> None:
     """Real pymavlink datagrams on 127.0.0.1, 600 at once against a bound of 50 (the real bound,
