@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 from collections import defaultdict
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -48,7 +49,65 @@ class RawDecoders:
         return out
 
 
-def replay(log: Path, config_path: Path, out_dir: Path | None = None, *, plots: bool = True) -> dict[str, Any]:  # noqa: C901, PLR0915 - read, step and compare in one pass over the recording; to split with the daemon's input stage
+@dataclass
+class Recording:
+    """What replay needs of a recording: the raw inputs by number, the cycles, the commands, the resumed state."""
+
+    raw: dict[int, tuple[str, float, dict[str, Any], bytes]] = field(default_factory=dict)
+    cycles: list[dict[str, Any]] = field(default_factory=list)
+    commands: dict[int, dict[str, Any]] = field(default_factory=dict)
+    state_loaded: dict[str, Any] | None = None
+    state_t_s: float | None = None
+
+    @classmethod
+    def read(cls, log: Path) -> Recording:
+        """Read ``log`` (an MCAP recording of the daemon).
+
+        Raises
+        ------
+        ValueError
+            Nothing could be read (not an MCAP recording, or empty), or no ``cycle`` records (recorded by another
+            version, or recording was off).
+        """
+        recording = cls()
+        n_records = 0
+        for record in read_records(log):
+            n_records += 1
+            recording._add(record.topic, record.payload, record.data, record.t_s)
+        if n_records == 0:
+            raise ValueError(f"{log}: no records read — not a dpcontrol recording (MCAP), or empty")
+        if not recording.cycles:
+            raise ValueError(f"{log}: no 'cycle' records — recorded without inputs, cannot replay")
+        return recording
+
+    def _add(self, topic: str, payload: dict[str, Any], data: bytes | None, t_s: float | None) -> None:
+        if topic.startswith("raw/"):
+            seq = payload.get("seq")
+            if isinstance(seq, int) and data is not None:
+                self.raw[seq] = (topic[4:], float(payload.get("t_s") or 0.0), payload, data)
+        elif topic == "cycle":
+            self.cycles.append(payload)
+        elif topic == "command" and isinstance(payload.get("cycle"), int):
+            self.commands[payload["cycle"]] = payload
+        elif topic == "state_loaded" and self.state_loaded is None:
+            self.state_loaded = payload.get("state")
+            self.state_t_s = t_s
+
+
+@dataclass
+class Commands:
+    """Recorded and replayed commands, one row per cycle (NaN where the recording has no command)."""
+
+    times: np.ndarray
+    old_thrust: np.ndarray
+    new_thrust: np.ndarray
+    old_azimuth: np.ndarray
+    new_azimuth: np.ndarray
+    missing_inputs: int = 0
+    first_difference: int | None = None
+
+
+def replay(log: Path, config_path: Path, out_dir: Path | None = None, *, plots: bool = True) -> dict[str, Any]:
     """Replay ``log`` with the configuration ``config_path``; returns the comparison report.
 
     Raises
@@ -61,63 +120,54 @@ def replay(log: Path, config_path: Path, out_dir: Path | None = None, *, plots: 
     # (damage is reported once, by the full pass below: this one reads up to the first config record)
     recorded = read_config(log, on_issue=lambda _path, _message: None) or {}
     same_config = recorded.get("config_sha256") == config.config_hash
-    raw: dict[int, tuple[str, float, dict[str, Any], bytes]] = {}
-    cycles: list[dict[str, Any]] = []
-    commands: dict[int, dict[str, Any]] = {}
-    state_loaded: dict[str, Any] | None = None
-    state_t_s: float | None = None
-    n_records = 0
-    for record in read_records(log):
-        n_records += 1
-        topic = record.topic
-        payload = record.payload
-        if topic.startswith("raw/"):
-            seq = payload.get("seq")
-            data = record.data
-            if isinstance(seq, int) and data is not None:
-                raw[seq] = (topic[4:], float(payload.get("t_s") or 0.0), payload, data)
-        elif topic == "cycle":
-            cycles.append(payload)
-        elif topic == "command" and isinstance(payload.get("cycle"), int):
-            commands[payload["cycle"]] = payload
-        elif topic == "state_loaded" and state_loaded is None:
-            state_loaded = payload.get("state")
-            state_t_s = record.t_s
-    if n_records == 0:
-        raise ValueError(f"{log}: no records read — not a dpcontrol recording (MCAP), or empty")
-    if not cycles:
-        raise ValueError(f"{log}: no 'cycle' records — recorded without inputs, cannot replay")
-
-    decoders = RawDecoders(config)
-    decoded: dict[int, list[Measurement]] = {}
-    for seq in sorted(raw):  # every raw input in arrival order (fast-packet state, signing counters)
-        transport, t_s, payload, data = raw[seq]
-        decoded[seq] = decoders.decode(transport, t_s, payload, data)
-
+    recording = Recording.read(log)
     controller = DpController(config)
-    if state_loaded is not None and same_config:
-        controller.load_state_dict(state_loaded, state_t_s if state_t_s is not None else float(cycles[0]["t_s"]))
+    if recording.state_loaded is not None and same_config:
+        controller.load_state_dict(recording.state_loaded, recording.state_t_s if recording.state_t_s is not None
+                                   else float(recording.cycles[0]["t_s"]))
     names = [t.name for t in config.vessel.thrusters]
+    commands = _step_through(controller, RawDecoders(config), recording, len(names))
     n = len(names)
-    rows = len(cycles)
-    new_thrust = np.zeros((rows, n))
-    new_azimuth = np.zeros((rows, n))
-    old_thrust = np.full((rows, n), np.nan)
-    old_azimuth = np.full((rows, n), np.nan)
-    times = np.zeros(rows)
-    missing_inputs = 0
-    first_difference: int | None = None
-    cursor: dict[int, int] = defaultdict(int)
-    for k, cycle in enumerate(cycles):
+    rows = len(recording.cycles)
+    compared = np.isfinite(commands.old_thrust[:, 0]) if n else np.zeros(rows, dtype=bool)
+    thrust_diff = np.abs(commands.new_thrust[compared] - commands.old_thrust[compared])
+    azimuth_diff = np.abs(commands.new_azimuth[compared] - commands.old_azimuth[compared])
+    report = {
+        "log": str(log), "config": str(config_path), "same_config": same_config, "cycles": rows,
+        "cycles_compared": int(np.count_nonzero(compared)), "raw_inputs": len(recording.raw),
+        "missing_inputs": commands.missing_inputs,
+        "identical": commands.first_difference is None and commands.missing_inputs == 0,
+        "first_difference_cycle": commands.first_difference,
+        "max_thrust_difference_n": float(thrust_diff.max()) if thrust_diff.size else 0.0,
+        "max_azimuth_difference_rad": float(azimuth_diff.max()) if azimuth_diff.size else 0.0,
+    }
+    if out_dir is not None:
+        _write(out_dir, report, commands, names, config.source_text, plots=plots and rows > 0,
+               same_config=same_config)
+    return report
+
+
+def _step_through(controller: DpController, decoders: RawDecoders, recording: Recording, n: int) -> Commands:
+    """Decode every raw input in arrival order (fast-packet state, signing counters), then run the step on each
+    cycle's inputs, links, feedback and requests at its recorded time; compare with the recorded commands."""
+    decoded: dict[int, list[Measurement]] = {}
+    for seq in sorted(recording.raw):
+        transport, t_s, payload, data = recording.raw[seq]
+        decoded[seq] = decoders.decode(transport, t_s, payload, data)
+    rows = len(recording.cycles)
+    commands = Commands(np.zeros(rows), np.full((rows, n), np.nan), np.zeros((rows, n)), np.full((rows, n), np.nan),
+                        np.zeros((rows, n)))
+    cursor: dict[int, int] = defaultdict(int)  # one raw input can give several measurements, possibly over two cycles
+    for k, cycle in enumerate(recording.cycles):
         t_s = float(cycle["t_s"])
-        times[k] = t_s
+        commands.times[k] = t_s
         measurements: list[Measurement] = []
         for seq in cycle.get("inputs", []):
             items = decoded.get(seq)
             if items is None:
-                missing_inputs += 1
+                commands.missing_inputs += 1
                 continue
-            i = cursor[seq]  # one raw input can give several measurements, possibly over two cycles
+            i = cursor[seq]
             if i < len(items):
                 measurements.append(items[i])
                 cursor[seq] = i + 1
@@ -128,39 +178,32 @@ def replay(log: Path, config_path: Path, out_dir: Path | None = None, *, plots: 
                     in cycle.get("feedback", [])]
         requests = [request_from_dict(r) for r in cycle.get("requests", [])]
         out = controller.step(t_s, measurements, feedback, requests)
-        new_thrust[k] = out.thrust_n
-        new_azimuth[k] = out.azimuth_rad
-        command = commands.get(int(cycle.get("cycle", k)))
+        commands.new_thrust[k] = out.thrust_n
+        commands.new_azimuth[k] = out.azimuth_rad
+        command = recording.commands.get(int(cycle.get("cycle", k)))
         if command is not None and len(command.get("thrust_n", [])) == n:
-            old_thrust[k] = command["thrust_n"]
-            old_azimuth[k] = command["azimuth_rad"]
-            if first_difference is None and (list(out.thrust_n) != command["thrust_n"]
-                                             or list(out.azimuth_rad) != command["azimuth_rad"]):
-                first_difference = k
-    compared = np.isfinite(old_thrust[:, 0]) if n else np.zeros(rows, dtype=bool)
-    thrust_diff = np.abs(new_thrust[compared] - old_thrust[compared])
-    azimuth_diff = np.abs(new_azimuth[compared] - old_azimuth[compared])
-    report = {
-        "log": str(log), "config": str(config_path), "same_config": same_config, "cycles": rows,
-        "cycles_compared": int(np.count_nonzero(compared)), "raw_inputs": len(raw),
-        "missing_inputs": missing_inputs, "identical": first_difference is None and missing_inputs == 0,
-        "first_difference_cycle": first_difference,
-        "max_thrust_difference_n": float(thrust_diff.max()) if thrust_diff.size else 0.0,
-        "max_azimuth_difference_rad": float(azimuth_diff.max()) if azimuth_diff.size else 0.0,
-    }
-    if out_dir is not None:
-        out_dir.mkdir(parents=True, exist_ok=True)
-        header = ["t_s"] + [f"recorded_thrust_{x}_n" for x in names] + [f"replay_thrust_{x}_n" for x in names] \
-            + [f"recorded_azimuth_{x}_rad" for x in names] + [f"replay_azimuth_{x}_rad" for x in names]
-        table = np.column_stack([times, old_thrust, new_thrust, old_azimuth, new_azimuth])
-        np.savetxt(out_dir / "commands.csv", table, delimiter=",", header=",".join(header), comments="",
-                   fmt="%.9g")
-        (out_dir / "replay.json").write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
-        (out_dir / "config.yaml").write_text(yaml.safe_dump(load_yaml(config.source_text)), encoding="utf-8")
-        if plots and rows:
-            _plot(out_dir, times, names, old_thrust=old_thrust, new_thrust=new_thrust, old_azimuth=old_azimuth,
-                  new_azimuth=new_azimuth, same_config=same_config)
-    return report
+            commands.old_thrust[k] = command["thrust_n"]
+            commands.old_azimuth[k] = command["azimuth_rad"]
+            if commands.first_difference is None and (list(out.thrust_n) != command["thrust_n"]
+                                                      or list(out.azimuth_rad) != command["azimuth_rad"]):
+                commands.first_difference = k
+    return commands
+
+
+def _write(out_dir: Path, report: dict[str, Any], commands: Commands, names: list[str], config_text: str, *,
+           plots: bool, same_config: bool) -> None:
+    """``commands.csv`` (recorded beside replayed), ``replay.json`` (the report), ``config.yaml``, the plot."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    header = ["t_s"] + [f"recorded_thrust_{x}_n" for x in names] + [f"replay_thrust_{x}_n" for x in names] \
+        + [f"recorded_azimuth_{x}_rad" for x in names] + [f"replay_azimuth_{x}_rad" for x in names]
+    table = np.column_stack([commands.times, commands.old_thrust, commands.new_thrust, commands.old_azimuth,
+                             commands.new_azimuth])
+    np.savetxt(out_dir / "commands.csv", table, delimiter=",", header=",".join(header), comments="", fmt="%.9g")
+    (out_dir / "replay.json").write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
+    (out_dir / "config.yaml").write_text(yaml.safe_dump(load_yaml(config_text)), encoding="utf-8")
+    if plots:
+        _plot(out_dir, commands.times, names, old_thrust=commands.old_thrust, new_thrust=commands.new_thrust,
+              old_azimuth=commands.old_azimuth, new_azimuth=commands.new_azimuth, same_config=same_config)
 
 
 def _plot(out_dir: Path, times: np.ndarray, names: list[str], *, old_thrust: np.ndarray, new_thrust: np.ndarray,
@@ -189,4 +232,4 @@ def _plot(out_dir: Path, times: np.ndarray, names: list[str], *, old_thrust: np.
     plt.close(fig)
 
 
-__all__ = ["RawDecoders", "replay"]
+__all__ = ["RawDecoders", "Recording", "replay"]
