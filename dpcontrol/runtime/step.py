@@ -575,9 +575,9 @@ class DpController:
         out.tau_achieved_b[:] = result.tau_achieved_b
         out.shortfall_b[:] = result.shortfall_b
 
-    def _update_mode(self, t_s: float, hub: HubOutput) -> None:  # noqa: C901, PLR0912 - the mode and fall-back rules of docs/fault-handling.md in one place
-        out = self.out
-        fb = self.config.fallback
+    def _update_mode(self, t_s: float, hub: HubOutput) -> None:
+        """The mode and fall-back rules of docs/fault-handling.md: auto-engage, reference-loss alarms and
+        fall-backs, restoring the mode fallen back from, refusing what cannot be held, bumpless entry."""
         wanted = self._requested_mode
         # Auto-engage (HIL/lockstep convenience): DP once the estimator has settled.
         auto = self.config.auto_engage_s
@@ -585,7 +585,35 @@ class DpController:
                 and t_s - self._valid_since_t_s >= auto and wanted is Mode.STANDBY:
             wanted = Mode.AUTO_HEADING if self.rudder_steering else Mode.AUTO_POSITION
             self._requested_mode = wanted
-        # Loss of references.
+        dead_reckoning, heading_lost = self._reference_loss_alarms(t_s, hub)
+        if self.mode is not Mode.STANDBY:
+            fb = self.config.fallback
+            if heading_lost and hub.heading_lost_s >= fb.heading_loss_limit_s:
+                wanted = self._loss_limit(t_s, "heading", fb.heading_loss, fb.heading_loss_limit_s, wanted)
+            elif self.mode is Mode.AUTO_POSITION and dead_reckoning:
+                wanted = self._position_loss(t_s, hub.position_lost_s, wanted)
+        fell_back = self._fell_back
+        if fell_back is not None and wanted is self.mode and self._requested_mode is self.mode:
+            wanted = self._restore(t_s, hub, fell_back)
+        if wanted is self.mode:
+            return
+        if wanted is not Mode.STANDBY:
+            refuse = self._refusal(t_s, hub, wanted)
+            if refuse is not None:
+                text = f"{wanted.value} refused: {refuse}"
+                self.out.rejected_requests.append(text)
+                if self._mode_request is not None:  # (None: the auto-engage asked, not the operator)
+                    self._taken[self._mode_request][1].append(text)
+                self._requested_mode = self.mode
+                return
+            if self.mode is Mode.STANDBY:
+                self._bumpless_entry()
+            self._engaged_once = True
+        self._change_mode(t_s, wanted)
+
+    def _reference_loss_alarms(self, t_s: float, hub: HubOutput) -> tuple[bool, bool]:
+        """Raise or clear the position dead-reckoning and heading-loss alarms; returns (dead reckoning the
+        position, heading lost)."""
         # (the alarm texts are built only while the alarm is active — formatting them every step cost more
         # than the rest of the mode logic — and an alarm is cleared only if this controller raised it)
         dead_reckoning = self._estimator_ready and not hub.position_available
@@ -609,50 +637,37 @@ class DpController:
             self.alarms.clear(t_s, "heading.dead_reckoning")
             self.alarms.clear(t_s, "heading.dead_reckoning_limit")
             self._heading_lost_alarm = False
-        if self.mode is not Mode.STANDBY:
-            if heading_lost and hub.heading_lost_s >= fb.heading_loss_limit_s:
-                wanted = self._loss_limit(t_s, "heading", fb.heading_loss, fb.heading_loss_limit_s, wanted)
-            elif self.mode is Mode.AUTO_POSITION and dead_reckoning:
-                wanted = self._position_loss(t_s, hub.position_lost_s, wanted)
-        fell_back = self._fell_back
-        if fell_back is not None and wanted is self.mode and self._requested_mode is self.mode:
-            wanted = self._restore(t_s, hub, fell_back)
-        if wanted is self.mode:
-            return
-        if wanted is not Mode.STANDBY:
-            refuse = None
-            if not self._estimator_ready:
-                refuse = "no estimate yet (position and heading references needed)"
-            elif not hub.heading_available:
-                refuse = "no heading reference"
-            elif wanted is Mode.AUTO_POSITION and not hub.position_available:
-                refuse = "no position reference"
-            else:
-                refuse = self._thrusters_insufficient(t_s, wanted) or None
-            if refuse is not None:
-                text = f"{wanted.value} refused: {refuse}"
-                out.rejected_requests.append(text)
-                if self._mode_request is not None:  # (None: the auto-engage asked, not the operator)
-                    self._taken[self._mode_request][1].append(text)
-                self._requested_mode = self.mode
-                return
-            estimate = out.estimate
-            assert estimate is not None
-            if self.mode is Mode.STANDBY:
-                # Bumpless entry: the reference starts at the estimate, moving as the vessel moves.
-                nu_n = body_to_ned(estimate.nu_hat_b, float(estimate.eta_hat_n[2]))
-                limits = self.config.guidance
-                speed = math.hypot(nu_n[0], nu_n[1])
-                if speed > limits.max_speed_mps:  # never start the reference faster than it may move
-                    nu_n[:2] *= limits.max_speed_mps / speed
-                nu_n[2] = max(-limits.max_yaw_rate_radps, min(limits.max_yaw_rate_radps, nu_n[2]))
-                self.reference_model.reset(estimate.eta_hat_n, nu_n)
-                self._accel_ff_n = None
-                self.controller.reset()
-                if not self._setpoint_given:
-                    self.setpoint_n[:] = estimate.eta_hat_n
-            self._engaged_once = True
-        out.mode_changes.append((self.mode.value, wanted.value, self._fallback_reason or "operator"))
+        return dead_reckoning, heading_lost
+
+    def _refusal(self, t_s: float, hub: HubOutput, wanted: Mode) -> str | None:
+        """Why ``wanted`` (a controlled mode) cannot be engaged now, or None."""
+        if not self._estimator_ready:
+            return "no estimate yet (position and heading references needed)"
+        if not hub.heading_available:
+            return "no heading reference"
+        if wanted is Mode.AUTO_POSITION and not hub.position_available:
+            return "no position reference"
+        return self._thrusters_insufficient(t_s, wanted) or None
+
+    def _bumpless_entry(self) -> None:
+        """Entering DP from standby: the reference starts at the estimate, moving as the vessel moves."""
+        estimate = self.out.estimate
+        assert estimate is not None
+        nu_n = body_to_ned(estimate.nu_hat_b, float(estimate.eta_hat_n[2]))
+        limits = self.config.guidance
+        speed = math.hypot(nu_n[0], nu_n[1])
+        if speed > limits.max_speed_mps:  # never start the reference faster than it may move
+            nu_n[:2] *= limits.max_speed_mps / speed
+        nu_n[2] = max(-limits.max_yaw_rate_radps, min(limits.max_yaw_rate_radps, nu_n[2]))
+        self.reference_model.reset(estimate.eta_hat_n, nu_n)
+        self._accel_ff_n = None
+        self.controller.reset()
+        if not self._setpoint_given:
+            self.setpoint_n[:] = estimate.eta_hat_n
+
+    def _change_mode(self, t_s: float, wanted: Mode) -> None:
+        """Switch to ``wanted``: the change recorded with its reason, a restored fall-back announced."""
+        self.out.mode_changes.append((self.mode.value, wanted.value, self._fallback_reason or "operator"))
         if self._fallback_reason.startswith("restored") and self._fell_back is not None:
             self._fell_back = None
             self.alarms.clear(t_s, "mode.fallback")
