@@ -63,7 +63,7 @@ import numpy as np
 
 from dpcontrol.runtime.step import Mode, StepOutput
 from dpcontrol.runtime.thruster_monitor import mismatch_limit_n
-from sim_plant.bench.lockstep import LockstepSimulation, controller_mapping
+from sim_plant.bench.lockstep import LockstepSimulation, lockstep_config
 from sim_plant.bench.report import expected_detection, first_raise
 from sim_plant.faults import GNSS_FAULTS, GYRO_FAULTS, PROTOCOL_FAULTS, THRUSTER_FAULTS, Fault
 from sim_plant.scenario import Scenario, parse_scenario
@@ -328,9 +328,8 @@ def _unexplained_alarms(result: Any) -> dict[str, int]:
 def run(hours: float = 24.0, seed: int = 1, progress: Callable[[float, float], None] | None = None) -> dict[str, Any]:
     """The soak run (see the module docstring); returns the report as a JSON-able dict."""
     scenario = build_scenario(hours, seed)
-    from dpcontrol.runtime.config import parse_config  # noqa: PLC0415
 
-    simulation = LockstepSimulation(scenario, parse_config(controller_mapping(scenario), file="<soak>"))
+    simulation = LockstepSimulation(scenario, lockstep_config(scenario, file="<soak>"))
     soak = _Soak(simulation, scenario.faults)
     wall0 = time.perf_counter()
     error = None

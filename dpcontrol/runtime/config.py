@@ -10,7 +10,7 @@ from __future__ import annotations
 import hashlib
 import math
 import re
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -46,12 +46,33 @@ class TransportConfig:
     ``settings`` holds the protocol's own keys: nmea0183 ``port, baud, max_sentence_chars``; nmea2000
     ``interface, channel`` (+ ``bitrate`` etc. passed to python-can; or a gateway: ``interface`` ydwg_tcp,
     ydwg_udp, ngt1_serial with ``channel`` HOST:PORT or the serial device) and ``variation_deg``; mavlink
-    ``url`` (+ ``signing_key_hex``).
+    ``url`` (+ ``signing_key_hex``). ``in_process``: no device — the bytes are handed over within the process
+    (:func:`in_process_transport`); the daemon has no reader for it.
     """
 
     name: str
     protocol: str
     settings: Mapping[str, Any]
+    in_process: bool = False
+
+
+def in_process_transport(name: str, protocol: str) -> TransportConfig:
+    """A transport whose bytes are handed over within the process (the lockstep simulation feeds the plant's
+    encoded bytes to the input stage): the protocol's decoding settings at their defaults, no device.
+
+    Raises
+    ------
+    ValueError
+        An unknown protocol.
+    """
+    decoding: dict[str, dict[str, Any]] = {
+        "nmea0183": {"max_sentence_chars": DEFAULT_MAX_SENTENCE_CHARS},
+        "nmea2000": {"variation_deg": None},
+        "mavlink": {"signing_key_hex": None, "heartbeat_timeout_s": 5.0},
+    }
+    if protocol not in decoding:
+        raise ValueError(f"transport {name}: unknown protocol {protocol!r} (one of {', '.join(PROTOCOLS)})")
+    return TransportConfig(name, protocol, decoding[protocol], in_process=True)
 
 
 @dataclass(frozen=True)
@@ -407,8 +428,12 @@ def _parse_control(section: Section, vessel: VesselData) -> ControlSettings:
     return ControlSettings(kind, control_config_from_mapping(dict(section.data), vessel, section.path))
 
 
-def parse_config(mapping: object, *, file: str | None = None, text: str = "") -> DaemonConfig:
+def parse_config(mapping: object, *, file: str | None = None, text: str = "",
+                 transports: Sequence[TransportConfig] = ()) -> DaemonConfig:
     """Validate a parsed YAML mapping into a :class:`DaemonConfig`.
+
+    ``transports`` are built by the caller (e.g. :func:`in_process_transport`) and come before the mapping's own
+    ``transports`` list, which is then optional; the sensors may name either.
 
     Raises
     ------
@@ -416,12 +441,12 @@ def parse_config(mapping: object, *, file: str | None = None, text: str = "") ->
         With the file name, the key path and what was expected.
     """
     try:
-        return _parse(mapping, text, file)
+        return _parse(mapping, text, file, tuple(transports))
     except ConfigError as error:
         raise error.with_file(file) if file else error from None
 
 
-def _parse(mapping: object, text: str, file: str | None) -> DaemonConfig:
+def _parse(mapping: object, text: str, file: str | None, given: tuple[TransportConfig, ...]) -> DaemonConfig:
     root = Section.of(mapping)
     vessel_id = root.string("vessel_id")
     if not VESSEL_ID_PATTERN.match(vessel_id):
@@ -455,11 +480,12 @@ def _parse(mapping: object, text: str, file: str | None) -> DaemonConfig:
                               loop.number("replica_lead_ms", 3.0, minimum=0.5, maximum=250.0 / rate) / 1000.0)
     loop.finish()
 
-    transports = parse_list(root, "transports", _parse_transport, required=True, min_items=1)
+    transports = [*given, *parse_list(root, "transports", _parse_transport, required=not given,
+                                      min_items=0 if given else 1)]
     by_name: dict[str, TransportConfig] = {}
     for index, transport in enumerate(transports):
         if transport.name in by_name:
-            raise ConfigError(f"transports[{index}].name", "a unique transport name", transport.name)
+            raise ConfigError(f"transports[{index - len(given)}].name", "a unique transport name", transport.name)
         by_name[transport.name] = transport
     routes = tuple(_parse_route(Section.of(item, where), by_name)
                    for where, item in root.items("sensors", required=True, min_items=1))

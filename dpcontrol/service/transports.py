@@ -148,6 +148,8 @@ def open_reader(transport: TransportConfig, sink: InputSink, options: ReaderOpti
         The protocol has no reader (the configuration parser admits only known ones), or the device's settings
         are refused by its reader.
     """
+    if transport.in_process:
+        raise ValueError(f"transport {transport.name}: an in-process transport has no device to read")
     factory = READERS.get(transport.protocol)
     if factory is None:
         raise ValueError(f"transport {transport.name}: no reader for protocol {transport.protocol!r}")

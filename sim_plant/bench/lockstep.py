@@ -30,7 +30,7 @@ import numpy as np
 from dpbase.requests import SetpointRequest
 from dpcontrol.platform_info import available_memory_bytes
 from dpcontrol.runtime.alarms import AlarmEvent
-from dpcontrol.runtime.config import DaemonConfig, SensorRoute, parse_config
+from dpcontrol.runtime.config import DaemonConfig, SensorRoute, TransportConfig, in_process_transport, parse_config
 from dpcontrol.runtime.hub import SensorState
 from dpcontrol.runtime.ingest import Nmea2000Input, TransportInput, transport_inputs
 from dpcontrol.runtime.inputs import SensorRouter
@@ -60,27 +60,42 @@ def _vessel_id(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_\-]", "_", name)[:64] or "vessel"
 
 
+def lockstep_transports(scenario: Scenario) -> list[TransportConfig]:
+    """One in-process transport per protocol of the scenario's sensors (``lockstep_<protocol>``), in the order the
+    sensors first use them: the plant's encoded bytes are handed to the input stage, no device is opened."""
+    protocols = dict.fromkeys(spec.protocol for spec in scenario.sensors)
+    return [in_process_transport(f"lockstep_{protocol}", protocol) for protocol in protocols]
+
+
+def lockstep_config(scenario: Scenario, overrides: Mapping[str, Any] | None = None, *,
+                    file: str | None = None) -> DaemonConfig:
+    """The controller configuration of a lockstep run of ``scenario``: :func:`controller_mapping` on the
+    in-process transports of :func:`lockstep_transports`.
+
+    Raises
+    ------
+    ConfigError
+        The scenario's ``controller:`` section or ``overrides`` are not a valid configuration.
+    """
+    return parse_config(controller_mapping(scenario, overrides), file=file or f"<lockstep {scenario.name}>",
+                        transports=lockstep_transports(scenario))
+
+
 def controller_mapping(scenario: Scenario, overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
-    """The controller configuration a lockstep run uses for ``scenario``.
+    """The controller configuration a lockstep run uses for ``scenario``, without its transports (the in-process
+    ones of :func:`lockstep_transports`; :func:`lockstep_config` parses both).
 
     The vessel, one sensor per scenario sensor (its kind, rate, noise and lever arm, as an
-    installation engineer would configure them from the data sheets) on a transport of its
+    installation engineer would configure them from the data sheets) on the transport of its
     protocol, and the scenario's ``controller:`` section (``estimator``, ``control``, ``guidance``,
     ``allocation``, ``hub``, ``fallback``, ``loop``, ``thruster_monitor``, ``consequence``, ``deviation``) on top;
     ``overrides`` (same keys) win over both. DP engages 20 s after the estimator starts unless ``loop`` says
     otherwise.
     """
     sensors: list[dict[str, Any]] = []
-    transports: dict[str, dict[str, Any]] = {}
     address = N2K_FIRST_ADDRESS
     for spec in scenario.sensors:
         transport = f"lockstep_{spec.protocol}"
-        if transport not in transports:
-            transports[transport] = {
-                "nmea0183": {"name": transport, "protocol": "nmea0183", "port": "lockstep"},
-                "nmea2000": {"name": transport, "protocol": "nmea2000", "interface": "virtual", "channel": "lockstep"},
-                "mavlink": {"name": transport, "protocol": "mavlink", "url": "udpin:127.0.0.1:0"},
-            }[spec.protocol]
         entry: dict[str, Any] = {"name": spec.name, "transport": transport, "rate_hz": spec.rate_hz}
         if isinstance(spec, GnssSpec):
             entry.update(kind="position", sigma_m=max(math.hypot(spec.noise_m, spec.markov_m), 1e-3),
@@ -106,7 +121,6 @@ def controller_mapping(scenario: Scenario, overrides: Mapping[str, Any] | None =
         "vessel": scenario.vessel,
         "datum": {"lat_deg": scenario.datum.lat_deg, "lon_deg": scenario.datum.lon_deg},
         "loop": {"rate_hz": 10.0, "initial_mode": "standby", "auto_engage_s": 20.0},
-        "transports": list(transports.values()),
         "sensors": sensors,
     }
     for source in (controller, dict(overrides or {})):
@@ -673,7 +687,7 @@ class LockstepSimulation:
 
     def __init__(self, scenario: Scenario, config: DaemonConfig | None = None) -> None:
         self.scenario = scenario
-        self.config = config or parse_config(controller_mapping(scenario), file=f"<lockstep {scenario.name}>")
+        self.config = config or lockstep_config(scenario)
         self.plant = Plant(scenario)
         self.controller = DpController(self.config)
         self.inputs = _Inputs(self.config, scenario)

@@ -11,7 +11,7 @@ from typing import Any
 
 from dpbase.schema import ConfigError
 from dpcontrol.runtime.config import load_config, parse_config
-from sim_plant.bench.lockstep import LockstepSimulation, RunResult, controller_mapping
+from sim_plant.bench.lockstep import LockstepSimulation, RunResult, lockstep_config
 from sim_plant.bench.report import wrap_headings, write_plots, write_summary, write_timeseries_csv
 from sim_plant.scenario import Scenario
 
@@ -36,8 +36,7 @@ def build_simulation(scenario: Scenario, controller_config: str | Path | None = 
     config file (its estimator, control, guidance ... and sensor names are used; its transports are
     replaced by the in-process codecs), and ``overrides`` (e.g. ``{"estimator": {"kind": "raw"}}``)."""
     if controller_config is None:
-        mapping = controller_mapping(scenario, overrides)
-        return LockstepSimulation(scenario, parse_config(mapping, file=f"<scenario {scenario.name}>"))
+        return LockstepSimulation(scenario, lockstep_config(scenario, overrides, file=f"<scenario {scenario.name}>"))
     config = load_config(controller_config)
     if overrides:
         from dpbase.yamlfile import load_yaml  # noqa: PLC0415

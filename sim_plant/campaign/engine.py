@@ -29,8 +29,7 @@ from typing import Any
 import numpy as np
 
 from dpbase.frames import ssa_array
-from dpcontrol.runtime.config import parse_config
-from sim_plant.bench.lockstep import LockstepSimulation, RunResult, _CtrlC, controller_mapping
+from sim_plant.bench.lockstep import LockstepSimulation, RunResult, _CtrlC, lockstep_config
 from sim_plant.bench.report import summarise, wrap_headings
 from sim_plant.campaign.spec import Run
 from sim_plant.scenario import parse_scenario
@@ -89,7 +88,7 @@ def execute_run(run: Run) -> dict[str, Any]:
     cpu0 = time.process_time()
     try:
         scenario = parse_scenario(run.scenario, file=f"<run {run.run}>")
-        config = parse_config(controller_mapping(scenario), file=f"<run {run.run}>")
+        config = lockstep_config(scenario, file=f"<run {run.run}>")
         result = LockstepSimulation(scenario, config).run(duration_s=run.duration_s)
         wrap_headings(result.columns)
         summary = summarise(result)

@@ -62,8 +62,7 @@ import numpy as np
 
 from dpbase.schema import ConfigError, Section, join
 from dpbase.yamlfile import read_yaml_file
-from dpcontrol.runtime.config import parse_config
-from sim_plant.bench.lockstep import controller_mapping
+from sim_plant.bench.lockstep import lockstep_config
 from sim_plant.scenario import Scenario, builtin_scenario_names, builtin_scenario_path, parse_scenario
 
 RANDOM_KINDS = ("uniform", "loguniform", "normal", "integers", "choice")
@@ -546,7 +545,7 @@ def _validate(scenario: dict[str, Any], where: str, checked: dict[str, None]) ->
                            sort_keys=True, default=str)
     if signature not in checked:
         try:
-            parse_config(controller_mapping(parsed), file="<controller>")
+            lockstep_config(parsed, file="<controller>")
         except (ConfigError, ValueError) as error:
             raise CampaignError(f"{where}: controller: {error}") from None
         checked[signature] = None

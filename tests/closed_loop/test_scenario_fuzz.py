@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 
 from dpbase.schema import ConfigError
 from dpcontrol.runtime.config import parse_config
-from sim_plant.bench.lockstep import LockstepSimulation, controller_mapping
+from sim_plant.bench.lockstep import LockstepSimulation, controller_mapping, lockstep_config, lockstep_transports
 from sim_plant.scenario import builtin_scenario_path, load_scenario, parse_scenario
 
 SCENARIOS = ["cs2-seed000", "supply-seed001", "mariner-seed002", "demo"]
@@ -78,7 +78,7 @@ def test_every_number_of_a_scenario_at_an_extreme_is_refused_by_name_or_runs(nam
             node[path[-1]] = value
             try:
                 scenario = parse_scenario(data, file=f"<{name}>")
-                simulation = LockstepSimulation(scenario, parse_config(controller_mapping(scenario), file="<c>"))
+                simulation = LockstepSimulation(scenario, lockstep_config(scenario, file="<c>"))
             except ConfigError:
                 refused += 1
                 continue
@@ -104,7 +104,7 @@ def test_a_mutated_scenario_is_refused_by_name_or_runs(case: tuple[str, dict[str
     name, data = case
     try:
         scenario = parse_scenario(data, file=f"<{name}>")
-        simulation = LockstepSimulation(scenario, parse_config(controller_mapping(scenario), file="<c>"))
+        simulation = LockstepSimulation(scenario, lockstep_config(scenario, file="<c>"))
     except ConfigError as error:
         assert str(error).startswith((f"<{name}>: ", "<c>: ")), error
         return
@@ -115,7 +115,7 @@ def test_a_mutated_scenario_is_refused_by_name_or_runs(case: tuple[str, dict[str
 def _controller_case(draw: st.DrawFn) -> tuple[str, dict[str, Any]]:
     name = draw(st.sampled_from(SCENARIOS))
     mapping = copy.deepcopy(controller_mapping(_SCENARIOS[name]))
-    note(f"{name}: {_mutate(mapping, draw, skip=('datum', 'sensors', 'transports', 'vessel_id'))}")
+    note(f"{name}: {_mutate(mapping, draw, skip=('datum', 'sensors', 'vessel_id'))}")
     return name, mapping
 
 
@@ -127,7 +127,8 @@ _SCENARIOS = {name: load_scenario(builtin_scenario_path(name)) for name in SCENA
 def test_a_mutated_controller_section_is_refused_by_name_or_runs(case: tuple[str, dict[str, Any]]) -> None:
     name, mapping = case
     try:
-        simulation = LockstepSimulation(_SCENARIOS[name], parse_config(mapping, file="<controller>"))
+        config = parse_config(mapping, file="<controller>", transports=lockstep_transports(_SCENARIOS[name]))
+        simulation = LockstepSimulation(_SCENARIOS[name], config)
     except ConfigError as error:
         assert str(error).startswith("<controller>: "), error
         return

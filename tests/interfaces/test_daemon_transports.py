@@ -118,3 +118,11 @@ def test_a_mavlink_url_the_reader_cannot_listen_on_is_refused_by_the_configurati
 
     with pytest.raises(ConfigError, match="url"):
         _transport({"name": "mav0", "protocol": "mavlink", "url": url})
+
+
+def test_an_in_process_transport_has_no_reader() -> None:
+    from dpcontrol.runtime.config import in_process_transport  # noqa: PLC0415
+
+    with pytest.raises(ValueError, match="in-process transport has no device"):
+        open_reader(in_process_transport("lockstep_mavlink", "mavlink"), lambda _event: None,
+                    ReaderOptions(time.monotonic))

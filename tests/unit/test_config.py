@@ -262,3 +262,25 @@ def test_controller_replica_settings() -> None:
     assert parse_config(config).replica == ReplicaSettings(True, 0.003)  # on by default, 3 ms ahead
     config["loop"] = {"rate_hz": 20, "replica_check": False, "replica_lead_ms": 12.5}  # 12.5 ms = period / 4
     assert parse_config(config).replica == ReplicaSettings(False, 0.0125)
+
+
+def test_transports_built_by_the_caller_take_the_place_of_the_files_list() -> None:
+    """The lockstep simulation's configuration: in-process transports (no device) given to the parser, the sensors
+    naming them; decoding settings at the protocols' defaults; a name given twice refused."""
+    from dpcontrol.runtime.config import in_process_transport  # noqa: PLC0415
+
+    given = [in_process_transport("bus", "nmea2000"), in_process_transport("link", "mavlink")]
+    mapping = {"vessel_id": "v", "vessel": "supply",
+               "sensors": [{"name": "gnss1", "kind": "position", "transport": "bus", "source_address": 40},
+                           {"name": "gyro1", "kind": "heading", "transport": "link", "system_id": 2}]}
+    config = parse_config(mapping, transports=given)
+    assert [(t.name, t.protocol, t.in_process) for t in config.transports] == [
+        ("bus", "nmea2000", True), ("link", "mavlink", True)]
+    assert config.transports[1].settings["heartbeat_timeout_s"] == 5.0
+    with pytest.raises(ConfigError, match="transports"):  # without them the file must list its own
+        parse_config(mapping)
+    twice = {**mapping, "transports": [{"name": "bus", "protocol": "nmea0183", "port": "/dev/ttyUSB0"}]}
+    with pytest.raises(ConfigError, match=r"transports\[0\]\.name"):
+        parse_config(twice, transports=given)
+    with pytest.raises(ValueError, match="unknown protocol"):
+        in_process_transport("x", "nmea0184")
