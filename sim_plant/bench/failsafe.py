@@ -111,8 +111,10 @@ class Case:
             fault.update(factor=10.0)
         elif self.fault == "gyro_offset":
             fault.update(offset_deg=10.0)
-        elif self.fault == "gyro_drift":
-            fault.update(rate_degps=0.2)
+        elif self.fault in ("gyro_drift", "rot_offset"):
+            # 0.2 °/s at full scale; Froude-scaled like the duration (an angle is not scaled, a time is: the model
+            # drifts the same angle in the scaled time)
+            fault.update(rate_degps=0.2 * self.duration_s / duration)
         sea = v["sea"]
         scenario: dict[str, Any] = {
             "name": f"failsafe-{self.vessel}-{self.fault}-{self.seed}",
