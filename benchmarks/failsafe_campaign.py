@@ -2,7 +2,8 @@
 
 Each run draws (seeded) a vessel (supply vessel, CyberShip II), a sea (direction, Hs ×0.5–1.5 of the vessel's
 moderate sea), a current direction, a sensor fault of every kind the plant injects on a GNSS or a gyro
-(``sim_plant.faults.GNSS_FAULTS`` + ``GYRO_FAULTS``), its duration (10–120 s at full scale; Froude-scaled on
+(``sim_plant.faults.GNSS_FAULTS`` + ``GYRO_FAULTS``; with ``--rate-of-turn`` a rate-of-turn sensor ``rot1`` too,
+and its faults ``ROT_FAULTS``), its duration (10–120 s at full scale; Froude-scaled on
 CyberShip II, see :mod:`sim_plant.bench.failsafe`) and its start (90–200 s, DP engaged at 20 s), and the plant's
 seed. The run is a lockstep simulation through the real codecs, hub, wave filter, PID and allocator; the table
 says, per run: the largest true LF position / heading distance from the set-point from 60 s on, whether that is
@@ -15,6 +16,7 @@ Every case is a plain mapping (``--cases-out FILE`` writes them as JSON lines): 
 Usage::
 
     OPENBLAS_NUM_THREADS=1 nice -n 10 python benchmarks/failsafe_campaign.py --runs 40 --seed 1
+    OPENBLAS_NUM_THREADS=1 nice -n 10 python benchmarks/failsafe_campaign.py --runs 20 --seed 1 --rate-of-turn
 """
 
 from __future__ import annotations
@@ -30,16 +32,17 @@ from pathlib import Path
 import numpy as np
 
 from sim_plant.bench.failsafe import VESSELS, Case, Outcome, run_case
-from sim_plant.faults import GNSS_FAULTS, GYRO_FAULTS
+from sim_plant.faults import GNSS_FAULTS, GYRO_FAULTS, ROT_FAULTS
 
 NOTED = ("dead_reckoning", "reference_rejected", "frozen", "stale", "rejected", "noisy", "fallback", "restored",
-         "reset", "deviation.alarm", "drift_off")  # the alarm codes listed in the table (the rest are counted)
+         "reset", "deviation.alarm", "drift_off", "rate_disagreement")  # the alarm codes listed in the table
 
 
-def draw_cases(runs: int, seed: int, vessels: list[str]) -> list[Case]:
-    """``runs`` cases drawn from ``seed`` (see the module docstring)."""
+def draw_cases(runs: int, seed: int, vessels: list[str], rate_of_turn: bool = False) -> list[Case]:
+    """``runs`` cases drawn from ``seed`` (see the module docstring); with ``rate_of_turn`` each case has the
+    rate-of-turn sensor ``rot1`` and its faults are drawn too."""
     rng = np.random.default_rng(seed)
-    kinds = GNSS_FAULTS + GYRO_FAULTS
+    kinds = GNSS_FAULTS + GYRO_FAULTS + (ROT_FAULTS if rate_of_turn else ())
     cases = []
     for _ in range(runs):
         cases.append(Case(vessel=str(rng.choice(vessels)), fault=str(rng.choice(kinds)),
@@ -48,7 +51,8 @@ def draw_cases(runs: int, seed: int, vessels: list[str]) -> list[Case]:
                           seed=int(rng.integers(1, 2**31 - 1)),
                           sea_direction_deg=float(np.round(rng.uniform(0.0, 360.0))),
                           hs_factor=float(np.round(rng.uniform(0.5, 1.5), 2)),
-                          current_direction_deg=float(np.round(rng.uniform(0.0, 360.0)))))
+                          current_direction_deg=float(np.round(rng.uniform(0.0, 360.0))),
+                          rate_of_turn=rate_of_turn))
     return cases
 
 
@@ -71,13 +75,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--runs", type=int, default=20)
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--vessels", default="supply,cybership2")
+    parser.add_argument("--rate-of-turn", action="store_true",
+                        help="a rate-of-turn sensor rot1 besides gnss1 and gyro1; its faults drawn too")
     parser.add_argument("--cases-out", type=Path)
     parser.add_argument("--cases-in", type=Path)
     args = parser.parse_args(argv)
     if args.cases_in:
         cases = [Case(**json.loads(line)) for line in args.cases_in.read_text().splitlines() if line.strip()]
     else:
-        cases = draw_cases(args.runs, args.seed, args.vessels.split(","))
+        cases = draw_cases(args.runs, args.seed, args.vessels.split(","), args.rate_of_turn)
     if args.cases_out:
         args.cases_out.write_text("".join(json.dumps(dataclasses.asdict(c)) + "\n" for c in cases))
     print(f"{'vessel':10s} {'fault':13s} {'start':>6s} {'dur_s':>6s} {'Hs×':>4s} {'max pos/bound':>14s} "

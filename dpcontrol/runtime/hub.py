@@ -58,6 +58,34 @@ the Kalman update with R + σ²_dr; and σ²_dr replaces the model's growth of t
 coming back is blended in from the dead-reckoned prediction as after any loss. Without a valid source (the gyro's
 own ROT froze or fell silent with it) nothing changes: the model carries the heading.
 
+**Rate check** (with a ``rate_of_turn`` sensor). A lone gyro that drifts slowly is followed: nothing else measures
+the heading, and the estimator's bias states learn the drift as a force. The rate sensor is independent of the
+gyros, so each gyro's heading change is compared with it over a sliding window of T = ``rot_check_window_s``
+(30 s), at each new gyro sample: D = Δψ_gyro − ∫(r − b̂)dt, against the limit max(``rot_check_min`` (1°),
+k·σ_D), k = ``rot_check_sigma_factor`` (5), σ_D² = 2σ_ψ² + σ_r²T_s·T + σ_b̂²T² (the gyro's noise at both ends of
+the window — its measured one when larger —, the rate noise's random walk, the bias estimate's error over T). σ_D
+is 0.1–0.15° for a 0.05° gyro and a 0.01 °/s rate gyro; the floor covers what the statistic does not model (a rate
+gyro's bias instability, up to 0.01 °/s × 30 s = 0.3°; a gyrocompass's dynamic errors) and is a third of the 3°
+heading bound: a 0.2 °/s drift is caught after 5 s. Drifts slower than 1°/T (0.033 °/s) go unseen. The rate
+sensor's bias is learnt in blocks of T, each committed only when the block after it also kept |D| within half the
+limit (a drift that starts late in a block is seen in the next), so the bias never learns the drift; it is held
+while the check has a verdict.
+
+|D| beyond the limit: **which is wrong** — two sources cannot vote. Another gyro that agrees with the rate says the
+disagreeing gyro; other gyros that disagree too say the rate. A lone gyro: the share of D in the gyro's own
+heading change, φ = Δψ_gyro / D, decides. In DP the heading is held, so the vessel's own turn over the window is
+small against D: a gyro that drifts shows the disagreement in its heading change (φ ≈ 1: the vessel has not yet
+turned under the controller, which follows the gyro), a rate sensor that is off in its integral while the gyro's
+heading stays (φ ≈ 0). φ ≥ 2/3: the gyro is *rejected* (``sensor.<gyro>.rejected``, "disagrees with rate of
+turn") and — alone — the heading dead-reckoned on the rate from where the rate says it is (the gyro's heading at
+the window's start + ∫(r − b̂)dt), not from the estimate that followed the drift; φ ≤ 1/3: the rate sensor is
+rejected (not dead-reckoned on); in between, or in a turn larger than 3·|D|, neither: the alarm says it cannot
+tell. Every verdict raises ``heading.rate_disagreement`` (alarm); it is decided once, when D first crosses the limit
+(later the controller has turned the vessel after the drifting gyro and φ falls). The verdict ends — the gyro or
+the rate taken back, the alarm cleared — when every gyro compared has kept |D| within half the limit for
+``rot_check_return_s`` (10 s): after a drift that stops, a window later. Without a valid rate sensor (stale,
+frozen, bias not yet learnt) nothing is compared and a verdict ends.
+
 The hub is pure: time is the ``t_s`` argument; no clock, no I/O.
 """
 
@@ -163,6 +191,13 @@ class HubConfig:
     rot_freeze_s: float = 1.0
     rot_max_radps: float = math.radians(30.0)
     rot_sigma_radps: float = math.radians(0.05)
+    # The gyros against the independent rate of turn (module docstring, "Rate check"): the sliding window [s], the
+    # limit's factor on the disagreement's 1-σ [-] and its floor [rad], how long a rejected gyro (or a blamed rate
+    # sensor) must agree again before it is taken back [s]
+    rot_check_window_s: float = 30.0
+    rot_check_sigma_factor: float = 5.0
+    rot_check_min_rad: float = math.radians(1.0)
+    rot_check_return_s: float = 10.0
 
 
 @dataclass(eq=False, slots=True)
@@ -209,6 +244,7 @@ class _SensorTrack:
     # the other references of its kind, in the configured order (the variance test's comparison)
     peers: list[_SensorTrack] = field(init=False, default_factory=list)
     rate: _RateSource | None = field(init=False, default=None)  # a heading sensor's own rate of turn
+    check: _RateCheck | None = field(init=False, default=None)  # against the rate sensor (a rate sensor configured)
 
     def __post_init__(self, limits: HubConfig) -> None:
         config = self.config
@@ -246,6 +282,15 @@ class _RateSource:
     chain_heading: float | None = None  # fused heading at the start of the current bias span (None: no span)
     chain_t_s: float = 0.0
     chain_integral: float = 0.0  # ∫ r dt since chain_t_s [rad]
+    # A rate sensor's bias is learnt in blocks of rot_check_window_s, each committed only once the block after it
+    # has passed the rate check too (a drift that starts late in a block is seen in the next): the sum of
+    # ∫r dt − Δψ [rad] and the time [s] of the block being collected and of the one waiting
+    block_error: float = 0.0
+    block_time_s: float = 0.0
+    block_dirty: bool = False  # a disagreement built up during it: discarded
+    pending_error: float = 0.0
+    pending_time_s: float = 0.0  # (0: none waiting)
+    blamed: bool = False  # the rate check found this rate wrong: not dead-reckoned on
 
     def valid(self, t_s: float, freeze_s: float) -> bool:
         """Fresh, not frozen, not disconnected (a sample out of range never becomes the value)."""
@@ -261,6 +306,71 @@ class _RateSource:
         if span <= 0.0:
             return math.inf
         return 2.0 * self.bias_heading_var / (span * span) + self.sigma_radps ** 2 * self.period_s / span
+
+
+@dataclass(eq=False, slots=True)
+class _RateCheck:
+    """A heading reference against the rate sensor over the sliding window (module docstring, "Rate check"): a
+    ring of (time, the reference's unwrapped heading, ∫(r − b̂)dt) at each of its new samples, allocated once."""
+
+    size: int  # ring capacity: twice the window's nominal samples, so a faster sensor only shortens the window
+    times: list[float] = field(init=False)
+    headings: list[float] = field(init=False)
+    integrals: list[float] = field(init=False)
+    head: int = -1  # newest entry
+    tail: int = 0  # oldest entry in the window
+    count: int = 0  # entries from tail to head
+    samples: int = -1  # the reference's sample count at the last entry
+    previous: float = 0.0  # its last raw heading [rad] (unwrapping)
+    unwrapped: float = 0.0  # its heading made continuous [rad]
+    disagreement: float = 0.0  # D = Δψ − ∫(r − b̂)dt over the window [rad]
+    heading_change: float = 0.0  # Δψ over the window [rad]
+    span_s: float = 0.0
+    limit: float = math.inf  # max(floor, k·σ_D) [rad]
+    rejected: bool = False  # found drifting: not fused
+    agree_since_t_s: float | None = None  # |D| within half the limit since then
+    detail: str = ""
+
+    def __post_init__(self) -> None:
+        self.times = [0.0] * self.size
+        self.headings = [0.0] * self.size
+        self.integrals = [0.0] * self.size
+
+    def reset(self) -> None:
+        """A gap (the reference stale, frozen or disconnected; the rate sensor changed): the window restarts."""
+        self.count = 0
+        self.head = -1
+        self.tail = 0
+        self.samples = -1
+        self.disagreement = self.heading_change = self.span_s = 0.0
+        self.limit = math.inf
+        self.agree_since_t_s = None
+
+    def add(self, t_s: float, heading: float, integral: float, window_s: float) -> None:
+        """A new sample ``heading`` [rad] at ``t_s`` with the rate's integral [rad]; the window's D and span."""
+        if self.count == 0:
+            self.unwrapped = heading
+        else:
+            self.unwrapped += ssa(heading - self.previous)
+        self.previous = heading
+        size = self.size
+        head = self.head = (self.head + 1) % size
+        self.times[head] = t_s
+        self.headings[head] = self.unwrapped
+        self.integrals[head] = integral
+        if self.count == size:  # full: the oldest goes
+            self.tail = (self.tail + 1) % size
+        else:
+            self.count += 1
+        times = self.times
+        start = t_s - window_s
+        while self.count > 1 and times[(self.tail + 1) % size] <= start:  # (the oldest entry at or before start)
+            self.tail = (self.tail + 1) % size
+            self.count -= 1
+        tail = self.tail
+        self.span_s = t_s - times[tail]
+        self.heading_change = self.unwrapped - self.headings[tail]
+        self.disagreement = self.heading_change - (integral - self.integrals[tail])
 
 
 def _healthy(tracks: list[_SensorTrack], t_s: float) -> list[_SensorTrack]:
@@ -368,6 +478,14 @@ class SensorHub:
             track.rate = _RateSource(f"{track.name} rate of turn", config.rot_sigma_radps, track.nominal_period_s,
                                      track.stale_s, owner=track)
         self._rates = [*self._rate_sensors.values(), *(t.rate for t in self._heading if t.rate is not None)]
+        # The rate check (module docstring): each heading reference against the first valid rate sensor
+        self._checks = bool(self._rate_sensors) and bool(self._heading)
+        if self._checks:
+            for track in self._heading:
+                track.check = _RateCheck(2 * math.ceil(config.rot_check_window_s * track.config.nominal_rate_hz) + 4)
+        self._check_ref: _RateSource | None = None  # the rate sensor the headings were compared with last
+        self._check_integral = 0.0  # ∫(r − b̂)dt of that rate sensor [rad]
+        self._check_verdict: str | None = None  # heading.rate_disagreement raised: "gyro", "rate" or "unknown"
         # the heading dead-reckoned from the last fresh fused heading (None: no valid rate since), when, its
         # variance at the anchor and the rate noise's random walk since [rad²], the bias error's share [rad]
         self._dr_heading: float | None = None
@@ -451,6 +569,8 @@ class SensorHub:
                 (self._position_lost_since is not None or self._heading_lost_since is not None):
             predicted_variance = self._dead_reckoning_variance(t_s, predicted_variance)
         self._ingest(measurements, predicted_y_n, predicted_variance)
+        if self._checks:
+            self._rate_check(t_s, dt)
         out = self._out
         if self._rejecting:  # (nothing to search for otherwise: the usual case)
             out.position_reset = self._all_rejecting(self._position, t_s)
@@ -578,7 +698,7 @@ class SensorHub:
             if not valid:
                 rate.chain_heading = None
                 continue
-            if source is None and rate.bias_time_s > 0.0:  # (a rate never compared with a heading is not used)
+            if source is None and rate.bias_time_s > 0.0 and not rate.blamed:  # (never compared with a heading: unused)
                 source = rate
             if heading_used:
                 self._learn_bias(rate, t_s, dt, measured)
@@ -597,6 +717,136 @@ class SensorHub:
             out.heading_dr_sigma_rad = 0.0
             return
         self._feed_dead_reckoning(source, t_s, predicted)
+
+    # ------------------------------------------------------------------ rate check
+    def _check_reference(self, t_s: float) -> _RateSource | None:
+        """The rate sensor the headings are compared with: the first valid one (in the configured order) whose bias
+        has been learnt, blamed or not (a blamed one is compared on, to see it agree again)."""
+        freeze_s = self._rot_freeze_s
+        for rate in self._rate_sensors.values():
+            if rate.bias_time_s > 0.0 and rate.valid(t_s, freeze_s):
+                return rate
+        return None
+
+    def _rate_check(self, t_s: float, dt: float) -> None:
+        """Each heading reference's change over the window against the rate sensor's ∫(r − b̂)dt; a disagreement
+        beyond the limit rejects the gyro or blames the rate (:meth:`_rate_verdict`); agreement again for
+        ``rot_check_return_s`` takes it back (module docstring, "Rate check")."""
+        ref = self._check_reference(t_s)
+        if ref is not self._check_ref:  # another rate, or none: the windows restart, nothing can be judged
+            self._check_ref = ref
+            for track in self._heading:
+                if track.check is not None:
+                    track.check.reset()
+            if self._check_verdict is not None:
+                self._release(t_s)  # (a gyro rejected meanwhile faces the prediction test alone)
+        if ref is None:
+            return
+        self._check_integral += (ref.value - ref.bias) * dt
+        cfg = self.config
+        window = cfg.rot_check_window_s
+        rate_var = ref.sigma_radps * ref.sigma_radps * ref.period_s
+        bias_var = ref.bias_variance(cfg.rot_bias_window_s)
+        building = False
+        for track in self._heading:
+            check = track.check
+            if check is None:
+                continue
+            if track.state in (SensorState.STALE, SensorState.FROZEN, SensorState.DISCONNECTED) or \
+                    track.disconnected or track.last_t_s is None or t_s - track.last_t_s > track.stale_s:
+                if check.count:
+                    check.reset()
+                continue
+            if check.samples != track.samples and track.frozen_since_t_s is None:  # a new sample (not a repeat)
+                check.samples = track.samples
+                check.add(t_s, track.value[0], self._check_integral, window)
+                sigma = self._sigma(track)
+                span = check.span_s
+                check.limit = max(cfg.rot_check_min_rad, cfg.rot_check_sigma_factor * math.sqrt(
+                    2.0 * sigma * sigma + rate_var * span + bias_var * span * span))
+                if abs(check.disagreement) <= 0.5 * check.limit:
+                    if check.agree_since_t_s is None:
+                        check.agree_since_t_s = t_s
+                else:
+                    check.agree_since_t_s = None
+                if abs(check.disagreement) > check.limit and self._check_verdict is None:
+                    self._rate_verdict(track, ref, t_s)
+            if check.count and check.agree_since_t_s is None:
+                building = True
+        if building or self._check_verdict is not None:  # no bias learnt from such a block (_close_block)
+            ref.block_dirty = True
+            if not building:
+                self._maybe_release(t_s)
+
+    def _rate_verdict(self, track: _SensorTrack, ref: _RateSource, t_s: float) -> None:
+        """``track`` disagrees with ``ref``: which is wrong. Another heading reference that agrees with the rate
+        says ``track``; others that disagree too say the rate. Alone, the share of the disagreement in the gyro's
+        own heading change decides (module docstring): in DP the heading is held, so a gyro that drifts shows the
+        disagreement in its heading change (share ≈ 1) and a rate that is off in its integral (share ≈ 0); in
+        between, or in a turn larger than the disagreement, neither is rejected."""
+        check = track.check
+        assert check is not None
+        others = [t.check for t in self._heading if t is not track and t.check is not None and t.check.count > 1
+                  and not t.check.rejected]
+        d_deg = math.degrees(check.disagreement)
+        what = (f"{track.name} heading change {math.degrees(check.heading_change):.2f} deg, {ref.name} "
+                f"{math.degrees(check.heading_change - check.disagreement):.2f} deg in {check.span_s:.1f} s "
+                f"(limit {math.degrees(check.limit):.2f} deg)")
+        share = check.heading_change / check.disagreement
+        turn = max(abs(check.heading_change), abs(check.heading_change - check.disagreement))
+        if any(c.agree_since_t_s is not None for c in others):
+            verdict, why = "gyro", "another heading reference agrees with the rate"
+        elif others:
+            verdict, why = "rate", "the other heading references disagree with it too"
+        elif turn > 3.0 * abs(check.disagreement):
+            verdict, why = "unknown", "the vessel turned more than they disagree: cannot tell which is wrong"
+        elif share >= 2.0 / 3.0:
+            verdict, why = "gyro", f"{share:.0%} of it in the gyro's heading change"
+        elif share <= 1.0 / 3.0:
+            verdict, why = "rate", f"{share:.0%} of it in the gyro's heading change"
+        else:
+            verdict, why = "unknown", f"{share:.0%} of it in the gyro's heading change: cannot tell which is wrong"
+        self._check_verdict = verdict
+        if verdict == "gyro":
+            check.rejected = True
+            check.detail = track.detail = f"rate check: disagrees with rate of turn {ref.name} by {d_deg:.2f} deg"
+            if self._heading_used == [track]:
+                # the dead reckoning starts from where the rate says the heading is — the gyro's heading at the
+                # window's start + ∫(r − b̂)dt since — not from the estimate, which followed the drift
+                self._dr_heading = ssa(check.previous - check.disagreement)
+                self._dr_t0_s = t_s
+                self._dr_var0 = (check.limit / self.config.rot_check_sigma_factor) ** 2  # (σ_D, floored)
+                self._dr_noise_var = self._dr_bias_sd = 0.0
+            action = f"{track.name} rejected"
+        elif verdict == "rate":
+            ref.blamed = True
+            action = f"{ref.name} not used"
+        else:
+            action = "neither rejected; the rate's bias held"
+        self.alarms.raise_(t_s, "heading.rate_disagreement", Severity.ALARM,
+                           f"{track.name} disagrees with rate of turn: {what}; {why}; {action}")
+
+    def _maybe_release(self, t_s: float) -> None:
+        """Every heading reference compared has agreed with the rate again for ``rot_check_return_s``: the
+        rejected gyro or the blamed rate is taken back and the alarm clears."""
+        return_s = self.config.rot_check_return_s
+        for track in self._heading:
+            check = track.check
+            if check is not None and check.count > 1 and \
+                    (check.agree_since_t_s is None or t_s - check.agree_since_t_s < return_s):
+                return
+        self._release(t_s)
+
+    def _release(self, t_s: float) -> None:
+        """The rate check's verdict ends: rejected gyros and a blamed rate are taken back."""
+        for track in self._heading:
+            if track.check is not None:
+                track.check.rejected = False
+                track.check.detail = ""
+        for rate in self._rate_sensors.values():
+            rate.blamed = False
+        self._check_verdict = None
+        self.alarms.clear(t_s, "heading.rate_disagreement")
 
     def _anchor_dead_reckoning(self, t_s: float, predicted: Sequence[float] | None) -> None:
         """A fresh fused heading: the dead reckoning starts again from it, combined with the estimator's prediction
@@ -627,14 +877,42 @@ class SensorHub:
         if start is not None:
             span = t_s - rate.chain_t_s
             if span > 0.0:
-                sample = (rate.chain_integral - ssa(heading - start)) / span
-                rate.bias_time_s += span
-                alpha = min(1.0, span / min(self.config.rot_bias_window_s, rate.bias_time_s))
-                rate.bias += alpha * (sample - rate.bias)
-                rate.bias_heading_var = 1.0 / self._heading_weight
+                error = rate.chain_integral - ssa(heading - start)
+                if rate.owner is None and self._checks:  # a rate sensor: in checked blocks
+                    rate.block_error += error
+                    rate.block_time_s += span
+                    if rate.block_time_s >= self.config.rot_check_window_s:
+                        self._close_block(rate)
+                else:
+                    self._commit_bias(rate, error, span)
         rate.chain_heading = heading
         rate.chain_t_s = t_s
         rate.chain_integral = 0.0
+
+    def _commit_bias(self, rate: _RateSource, error: float, span: float) -> None:
+        """Average ``error`` = ∫r dt − Δψ [rad] over ``span`` [s] into the bias (weight span / window, a running
+        mean over the first window)."""
+        rate.bias_time_s += span
+        alpha = min(1.0, span / min(self.config.rot_bias_window_s, rate.bias_time_s))
+        rate.bias += alpha * (error / span - rate.bias)
+        rate.bias_heading_var = 1.0 / self._heading_weight
+
+    def _close_block(self, rate: _RateSource) -> None:
+        """A rate sensor's bias block is complete: the one waiting is committed if this one passed the rate check
+        too, this one waits for the next; a block in which a disagreement built up is discarded with the one
+        waiting (the disagreement may have started in it). The first block is committed at once: there is no bias
+        to check with before it."""
+        if rate.block_dirty:
+            rate.pending_time_s = 0.0
+        elif rate.bias_time_s == 0.0:
+            self._commit_bias(rate, rate.block_error, rate.block_time_s)
+        else:
+            if rate.pending_time_s > 0.0:
+                self._commit_bias(rate, rate.pending_error, rate.pending_time_s)
+            rate.pending_error = rate.block_error
+            rate.pending_time_s = rate.block_time_s
+        rate.block_error = rate.block_time_s = 0.0
+        rate.block_dirty = False
 
     def _feed_dead_reckoning(self, source: _RateSource, t_s: float, predicted: Sequence[float]) -> None:
         """Every heading reference lost, ``source`` valid: the dead-reckoned heading is this period's heading
@@ -659,7 +937,7 @@ class SensorHub:
     def _rate_state(self, rate: _RateSource, t_s: float, valid: bool) -> None:
         """A rate sensor's state for the status, with its ``sensor.<name>.<state>`` warning when it changes."""
         if valid:
-            state = SensorState.OK
+            state = SensorState.REJECTED if rate.blamed else SensorState.OK
         elif rate.disconnected:
             state = SensorState.DISCONNECTED
         elif rate.last_t_s is None:
@@ -826,8 +1104,10 @@ class SensorHub:
         if all(t.rejecting_since_t_s is None for t in tracks):
             return False  # nothing of this kind is being rejected (what the test below concludes then)
         persist = self.config.reject_persist_s
+        # (nor one the rate check rejected: its heading drifts, however far it is from the estimate)
         live = [t for t in tracks if t.last_t_s is not None and not t.disconnected and
-                t_s - t.last_t_s <= t.stale_s and t.state is not SensorState.FROZEN]
+                t_s - t.last_t_s <= t.stale_s and t.state is not SensorState.FROZEN and
+                (t.check is None or not t.check.rejected)]
         accepted = [t for t in live if t.name in self._accept_requested and t.rejecting_since_t_s is not None]
         why = "all references disagreed with the estimate; estimator re-initialised on them"
         if accepted:  # the operator's word (accept_reference): at once
@@ -907,7 +1187,8 @@ class SensorHub:
                 state = SensorState.STALE
             elif track.frozen_since_t_s is not None and t_s - track.frozen_since_t_s >= freeze_limit:
                 state = SensorState.FROZEN
-            elif track.rejecting_since_t_s is not None and t_s - track.rejecting_since_t_s >= reject_persist:
+            elif (track.rejecting_since_t_s is not None and t_s - track.rejecting_since_t_s >= reject_persist) or \
+                    (track.check is not None and track.check.rejected):  # (or its heading rate disagrees with the ROT)
                 state = SensorState.REJECTED
             elif track.state is SensorState.ISOLATED and track.median_fail_since_t_s is not None:
                 state = SensorState.ISOLATED
@@ -1170,9 +1451,11 @@ class SensorHub:
         rows: list[SensorStatus] = []
         for track in self._all:
             age = None if track.last_t_s is None else round(t_s - track.last_t_s, 3)
+            check = track.check
+            detail = check.detail if check is not None and check.rejected else track.detail
             rows.append({"name": track.name, "kind": track.config.kind.value, "state": track.state.value,
                          "age_s": age, "weight": round(track.weight, 4), "sigma": self._sigma(track),
-                         "samples": track.samples, "rejected": track.rejected_samples, "detail": track.detail})
+                         "samples": track.samples, "rejected": track.rejected_samples, "detail": detail})
         source = self._out.heading_rate_source
         for rate in self._rate_sensors.values():
             age = None if rate.last_t_s is None else round(t_s - rate.last_t_s, 3)

@@ -52,8 +52,11 @@ VESSELS: dict[str, dict[str, Any]] = {
                        "control": {"kind": "pid"},
                        # the hub's distances and detection times Froude-scaled (length 1/70, time 1/√70): the
                        # 4 m jump floor and 3 m median limit of a ship are 57 mm and 43 mm on the model, its 5 s
-                       # freeze window 0.6 s, its 10 s / 180 s rejection times 1.2 s / 21.5 s
+                       # freeze window 0.6 s, its 10 s / 180 s rejection times 1.2 s / 21.5 s, its rate check's 30 s
+                       # window and 10 s return 3.6 s / 1.2 s
                        "hub": {"jump_min_m": 4.0 / SCALE_CS2, "median_limit_m": 3.0 / SCALE_CS2,
+                               "rot_check_window_s": 30.0 / math.sqrt(SCALE_CS2),
+                               "rot_check_return_s": 10.0 / math.sqrt(SCALE_CS2),
                                "freeze_window_s": 5.0 / math.sqrt(SCALE_CS2),
                                "reject_persist_s": 10.0 / math.sqrt(SCALE_CS2),
                                "single_reference_accept_s": 180.0 / math.sqrt(SCALE_CS2)},
@@ -111,8 +114,10 @@ class Case:
             fault.update(factor=10.0)
         elif self.fault == "gyro_offset":
             fault.update(offset_deg=10.0)
-        elif self.fault == "gyro_drift":
-            fault.update(rate_degps=0.2)
+        elif self.fault in ("gyro_drift", "rot_offset"):
+            # 0.2 °/s at full scale; Froude-scaled like the duration (an angle is not scaled, a time is: the model
+            # drifts the same angle in the scaled time)
+            fault.update(rate_degps=0.2 * self.duration_s / duration)
         sea = v["sea"]
         scenario: dict[str, Any] = {
             "name": f"failsafe-{self.vessel}-{self.fault}-{self.seed}",

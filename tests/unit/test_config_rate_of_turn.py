@@ -51,6 +51,18 @@ def test_the_hubs_rate_of_turn_settings_are_parsed_in_their_units() -> None:
     assert hub.rot_sigma_radps == pytest.approx(math.radians(0.02))
 
 
+def test_the_rate_checks_settings_are_parsed_in_their_units() -> None:
+    config = copy.deepcopy(BASE)
+    config["hub"] = {"rot_check_window_s": 60, "rot_check_sigma_factor": 4, "rot_check_min_deg": 2.0,
+                     "rot_check_return_s": 20}
+    hub = parse_config(config).hub
+    assert hub.rot_check_window_s == 60.0 and hub.rot_check_sigma_factor == 4.0 and hub.rot_check_return_s == 20.0
+    assert hub.rot_check_min_rad == pytest.approx(math.radians(2.0))
+    defaults = parse_config(copy.deepcopy(BASE)).hub
+    assert (defaults.rot_check_window_s, defaults.rot_check_sigma_factor, defaults.rot_check_return_s) == (30, 5, 10)
+    assert defaults.rot_check_min_rad == pytest.approx(math.radians(1.0))
+
+
 @pytest.mark.parametrize(("edit", "path_expected"), [
     (lambda c: c["sensors"][2].update(sigma_degps=0), "sensors[2].sigma_degps"),
     (lambda c: c["sensors"][2].update(sigma_degps=100), "sensors[2].sigma_degps"),
@@ -59,6 +71,10 @@ def test_the_hubs_rate_of_turn_settings_are_parsed_in_their_units() -> None:
     (lambda c: c.update(hub={"rot_bias_window_s": 0}), "hub.rot_bias_window_s"),
     (lambda c: c.update(hub={"rot_max_degps": -1}), "hub.rot_max_degps"),
     (lambda c: c.update(hub={"rot_freeze_s": "long"}), "hub.rot_freeze_s"),
+    (lambda c: c.update(hub={"rot_check_window_s": 0}), "hub.rot_check_window_s"),
+    (lambda c: c.update(hub={"rot_check_sigma_factor": -5}), "hub.rot_check_sigma_factor"),
+    (lambda c: c.update(hub={"rot_check_min_deg": 0}), "hub.rot_check_min_deg"),
+    (lambda c: c.update(hub={"rot_check_return_s": "soon"}), "hub.rot_check_return_s"),
     # a rate sensor is no heading reference
     (lambda c: c.update(sensors=[c["sensors"][0], c["sensors"][2]]), "sensors"),
 ])
