@@ -26,8 +26,9 @@ surge, sway, yaw along the last axis; the PID's layout is given with its constan
   [m, m, rad], ``C_ACCEL``/``C_VELOCITY`` the gating thresholds, ``C_A2_LO``/``C_A2_HI``/``C_A1_LO``/
   ``C_A1_HI`` the projection bounds, ``C_A2_NOMINAL``/``C_A1_NOMINAL`` the nominal parameters,
   ``C_OMEGA`` ω_M [rad/s] and ``C_ZETA`` ζ of eq. (15), ``C_FLAGS`` = (σ [1/s], adapt,
-  reference regressor) (1.0 = true) and ``C_ENTRY_REST`` how long the reference model must have rested
-  after an entry into DP before anything is learnt [s] (0: no wait);
+  reference regressor) (1.0 = true), ``C_ENTRY_REST`` how long the reference model must have rested
+  after an entry into DP before anything is learnt [s] (0: no wait) and ``C_GUIDED`` = (1.0: y_M is the
+  guidance's reference itself, 0.0: the second-order model (15) driven by it, unused, unused);
 * ``state`` (``S_ROWS``, 3): ``S_Y_M``/``S_YD_M`` the reference model y_M, ẏ_M in NED [m, rad; m/s,
   rad/s], ``S_A2``/``S_A1`` the estimates â₂, â₁, ``S_COMMAND``/``S_ACHIEVED`` the last command and
   the force the allocator achieved for it [N, N, N·m], ``S_FLAGS`` = (reference model initialised,
@@ -45,19 +46,20 @@ import math
 import numpy as np
 
 from dpbase.frames import ssa_compiled as ssa
-from dpbase.jit import UniTuple, f8, f8_1d, f8_2d, i8, kernel
+from dpbase.jit import UniTuple, b1, f8, f8_1d, f8_2d, i8, kernel
 
 C_BETA0, C_BETA1, C_G12, C_G_RATIO, C_GAMMA_M, C_GAMMA_C, C_DEAD_ZONE, C_ACCEL, C_VELOCITY = range(9)
 C_A2_LO, C_A2_HI, C_A1_LO, C_A1_HI, C_A2_NOMINAL, C_A1_NOMINAL, C_OMEGA, C_ZETA, C_FLAGS = range(9, 18)
 C_ENTRY_REST = 18
-C_ROWS = 19
+C_GUIDED = 19
+C_ROWS = 20
 S_Y_M, S_YD_M, S_A2, S_A1, S_COMMAND, S_ACHIEVED, S_FLAGS, S_REST = range(8)
 S_ROWS = 8
 OUT_TAU, OUT_ERROR, OUT_VELOCITY_ERROR, OUT_PARAMETERS = 0, 3, 6, 9
 OUT_SIZE = 18
 
 #: :func:`mrac_step`'s return value for an input that is not 3 finite numbers: ``ERROR_INPUT - k`` for the
-#: k-th vector argument (0 η̂, 1 ν̂, 2 b̂, 3 τ̂_wind, 4 η_d); a result >= 0 is the excitation bit mask (bit i:
+#: k-th vector argument (0 η̂, 1 ν̂, 2 b̂, 3 τ̂_wind, 4 η_d, 5 η̇_d, 6 η̈_d); a result >= 0 is the excitation bit mask (bit i:
 #: DOF i) plus ``MASS_CHANGED`` when an estimate â₂ changed.
 ERROR_INPUT = -1
 MASS_CHANGED = 8
@@ -139,6 +141,43 @@ def _state_inputs_error(eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind:
     return 0
 
 
+@kernel(UniTuple(f8, 6)(f8_1d, f8_1d, f8_1d, f8_1d, f8_1d, b1, f8_2d, f8_2d))
+def _reference_now(eta: np.ndarray, nu: np.ndarray, r: np.ndarray, rd: np.ndarray, rdd: np.ndarray, guided: bool,
+                   const: np.ndarray, state: np.ndarray) -> tuple[float, float, float, float, float, float]:
+    """The reference at t_k, written into ``state``'s y_M, ẏ_M; returns (r − y_M, ÿ_M) in NED.
+
+    Guided: y_M is the guidance's η_d itself (one reference: bumpless already, with its rates); r − y_M = 0.
+    Otherwise model (15) with u_c = k_M r, started at the estimate on its first step (bumpless, moving as the
+    vessel moves); the heading difference the short way.
+    """
+    y_m = state[S_Y_M]
+    yd_m = state[S_YD_M]
+    if guided:
+        for i in range(3):
+            y_m[i] = r[i]
+            yd_m[i] = rd[i]
+        y_m[2] = ssa(r[2])
+        state[S_FLAGS, 0] = 1.0
+        return 0.0, 0.0, 0.0, rdd[0], rdd[1], rdd[2]
+    if state[S_FLAGS, 0] == 0.0:
+        c = math.cos(eta[2])
+        s = math.sin(eta[2])
+        y_m[0] = eta[0]
+        y_m[1] = eta[1]
+        y_m[2] = ssa(eta[2])
+        yd_m[0] = c * nu[0] - s * nu[1]
+        yd_m[1] = s * nu[0] + c * nu[1]
+        yd_m[2] = nu[2]
+        state[S_FLAGS, 0] = 1.0
+    beta0 = const[C_BETA0]
+    beta1 = const[C_BETA1]
+    d0 = r[0] - y_m[0]
+    d1 = r[1] - y_m[1]
+    d2 = ssa(r[2] - y_m[2])
+    return (d0, d1, d2, beta0[0] * d0 - beta1[0] * yd_m[0], beta0[1] * d1 - beta1[1] * yd_m[1],
+            beta0[2] * d2 - beta1[2] * yd_m[2])
+
+
 @kernel(f8(f8, f8, f8))
 def _clamp(x: float, lo: float, hi: float) -> float:
     """Python's ``min(max(x, lo), hi)``."""
@@ -146,9 +185,9 @@ def _clamp(x: float, lo: float, hi: float) -> float:
     return hi if hi < y else y
 
 
-@kernel(i8(f8, f8_1d, f8_1d, f8_1d, f8_1d, f8_1d, i8, f8_2d, f8_2d, f8_1d))
+@kernel(i8(f8, f8_1d, f8_1d, f8_1d, f8_1d, f8_1d, f8_1d, f8_1d, i8, f8_2d, f8_2d, f8_1d))
 def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind: np.ndarray, r: np.ndarray,
-              mask: int, const: np.ndarray, state: np.ndarray, out: np.ndarray) -> int:
+              rd: np.ndarray, rdd: np.ndarray, mask: int, const: np.ndarray, state: np.ndarray, out: np.ndarray) -> int:
     """One MRAC period: control law (17)–(18), adaptive law (21) and the exact advance of model (15).
 
     Parameters
@@ -157,8 +196,10 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
         Sample time [s] (> 0, checked by the caller).
     eta, nu, bias, wind : ndarray, shape (3,)
         η̂ in NED [m, m, rad], ν̂ [m/s, m/s, rad/s], b̂ and τ̂_wind in body axes [N, N, N·m].
-    r : ndarray, shape (3,)
-        The guidance's pose η_d driving the reference model (``u_c = k_M r``) [m, m, rad].
+    r, rd, rdd : ndarray, shape (3,)
+        The guidance's reference η_d [m, m, rad], η̇_d [m/s, m/s, rad/s], η̈_d [m/s², m/s², rad/s²] (NED):
+        with ``C_GUIDED`` the reference model's state itself (y_M = η_d), otherwise η_d drives model (15)
+        (``u_c = k_M r``) and the rates are not used.
     mask : int
         Controlled DOFs, bit i for DOF i (surge 1, sway 2, yaw 4).
     const, state, out : ndarray
@@ -176,30 +217,20 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
         return error
     if _valid3(r) == 0:
         return ERROR_INPUT - 4
+    guided = const[C_GUIDED, 0] != 0.0
+    if guided and _valid3(rd) == 0:
+        return ERROR_INPUT - 5
+    if guided and _valid3(rdd) == 0:
+        return ERROR_INPUT - 6
     y_m = state[S_Y_M]
     yd_m = state[S_YD_M]
     a2 = state[S_A2]
     a1 = state[S_A1]
     c = math.cos(eta[2])
     s = math.sin(eta[2])
-    if state[S_FLAGS, 0] == 0.0:  # bumpless: the model starts at the estimate, moving as the vessel moves
-        y_m[0] = eta[0]
-        y_m[1] = eta[1]
-        y_m[2] = ssa(eta[2])
-        yd_m[0] = c * nu[0] - s * nu[1]
-        yd_m[1] = s * nu[0] + c * nu[1]
-        yd_m[2] = nu[2]
-        state[S_FLAGS, 0] = 1.0
     b0 = const[C_BETA0]
     b1 = const[C_BETA1]
-
-    # reference model (15) with u_c = k_M r: its acceleration at t_k (NED; heading the short way)
-    d0 = r[0] - y_m[0]
-    d1 = r[1] - y_m[1]
-    d2 = ssa(r[2] - y_m[2])
-    ydd0 = b0[0] * d0 - b1[0] * yd_m[0]
-    ydd1 = b0[1] * d1 - b1[1] * yd_m[1]
-    ydd2 = b0[2] * d2 - b1[2] * yd_m[2]
+    d0, d1, d2, ydd0, ydd1, ydd2 = _reference_now(eta, nu, r, rd, rdd, guided, const, state)
     # errors and reference in the vessel-parallel frame
     dn = eta[0] - y_m[0]
     de = eta[1] - y_m[1]
@@ -277,6 +308,8 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
         parameters[3 + i] = a1[i]
         parameters[6 + i] = y_m[i]
 
+    if guided:  # (the guidance advances its own reference)
+        return excited | MASS_CHANGED if mass_changed else excited
     # advance the reference model over the sample (exact ZOH discretisation of (15)), about its
     # equilibrium r (the heading unwrapped next to y_M)
     for i in range(3):

@@ -141,6 +141,7 @@ from dpcontrol.control.kernels import (
     C_G_RATIO,
     C_GAMMA_C,
     C_GAMMA_M,
+    C_GUIDED,
     C_OMEGA,
     C_ROWS,
     C_VELOCITY,
@@ -170,6 +171,9 @@ from dpcontrol.models.vessels import VesselData
 PARAMETER_NAMES: tuple[str, ...] = ("mass_surge_kg", "mass_sway_kg", "inertia_yaw_kgm2",
                                     "damping_surge_nspm", "damping_sway_nspm", "damping_yaw_nmsprad")
 REGRESSORS: tuple[str, ...] = ("reference", "plant")
+#: What y_M is: ``guidance`` the guidance's reference itself (one reference, what the operator sees), ``model``
+#: seed 003's second-order model (15) driven by it.
+REFERENCES: tuple[str, ...] = ("guidance", "model")
 #: Reference-model outputs added to :attr:`ControlOutput.parameters` by :meth:`MracController.step`: the
 #: state ``y_M`` of eq. (15) in NED at the step's time (the pose the vessel is made to track).
 REFERENCE_MODEL_NAMES: tuple[str, ...] = ("ref_model_north_m", "ref_model_east_m", "ref_model_heading_rad")
@@ -225,6 +229,11 @@ class MracConfig:
         After each entry into DP (:meth:`MracController.reset`) nothing is learnt until the reference model
         has rested (gate closed) this long [s] (>= 0; 0 = learn at once; the default design: one
         reference-model period). See "The entry glide" in the module docstring.
+    reference : {"model", "guidance"}
+        What the reference y_M of eq. (17) is: ``"model"`` seed 003's second-order model (15) (``natural_period_s``,
+        ``relative_damping``) driven by the guidance's η_d, ``"guidance"`` the guidance's η_d, η̇_d, η̈_d
+        themselves (one reference: the pose the operator sees, no second lag; β₀, β₁ then set only the error
+        dynamics (19)).
     """
 
     mass_nominal: Triple
@@ -243,6 +252,7 @@ class MracConfig:
     adapt: bool = True
     regressor: str = "reference"
     entry_rest_s: float = 0.0
+    reference: str = "model"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "mass_nominal", _triple("mass_nominal", self.mass_nominal))
@@ -273,6 +283,8 @@ class MracConfig:
             raise ValueError(f"adapt must be true or false, got {self.adapt!r}")
         if self.regressor not in REGRESSORS:
             raise ValueError(f"regressor must be one of {REGRESSORS}, got {self.regressor!r}")
+        if self.reference not in REFERENCES:
+            raise ValueError(f"reference must be one of {REFERENCES}, got {self.reference!r}")
 
     @property
     def beta0(self) -> np.ndarray:
@@ -346,7 +358,7 @@ class ReferenceExcitation:
 
 @functools.lru_cache(maxsize=32)
 def reference_excitation(guidance: ReferenceModelConfig, natural_period_s: Triple, relative_damping: Triple,
-                         excitation: Triple) -> ReferenceExcitation:
+                         excitation: Triple, guided: bool = False) -> ReferenceExcitation:
     """The MRAC reference model (15) driven by the guidance's answer to a set-point step of ℓ.
 
     The runtime drives the MRAC reference model with the output of the guidance
@@ -355,7 +367,8 @@ def reference_excitation(guidance: ReferenceModelConfig, natural_period_s: Tripl
     smaller (for the shuttle tanker and a 20 m move 1.8·10⁻³ m/s² instead of β₀ℓ = 2·10⁻² m/s²).
     Gains and gating thresholds designed for a step would then adapt ≈ 100× too slowly (seed 003's
     mass estimate would not keep up with the loading). Simulated once per configuration (cached):
-    north and heading moved together (independent channels; sway is surge's mirror image).
+    north and heading moved together (independent channels; sway is surge's mirror image). ``guided``: y_M is
+    the guidance's reference itself (``reference: guidance``), whose own acceleration and speed count.
     """
     model = ReferenceModel(guidance)
     model.reset(np.zeros(3))
@@ -375,16 +388,22 @@ def reference_excitation(guidance: ReferenceModelConfig, natural_period_s: Tripl
     peak_v = [0.0, 0.0, 0.0]
     state = {i: np.zeros(3) for i in dofs}  # [y_M, ẏ_M, r] per DOF
     for _ in range(steps):
-        r = model.step(dt, target).eta_d_n
+        reference = model.step(dt, target)
+        r = reference.eta_d_n
         for i in dofs:
             x = state[i]
             e, beta0, beta1 = phi[i]
-            x[2] = r[i]
-            accel = beta0 * (x[2] - x[0]) - beta1 * x[1]
+            if guided:
+                x[1] = reference.eta_dot_d_n[i]
+                accel = float(reference.eta_ddot_d_n[i])
+            else:
+                x[2] = r[i]
+                accel = beta0 * (x[2] - x[0]) - beta1 * x[1]
             energy[i] += accel * accel * dt
             peak_a[i] = max(peak_a[i], abs(accel))
             peak_v[i] = max(peak_v[i], abs(x[1]))
-            state[i] = e @ x
+            if not guided:
+                state[i] = e @ x
     return ReferenceExcitation(energy=(energy[0], energy[0], energy[2]), peak_accel=(peak_a[0], peak_a[0], peak_a[2]),
                                peak_velocity=(peak_v[0], peak_v[0], peak_v[2]))
 
@@ -408,7 +427,8 @@ _ENTRY_REST_PERIODS = 1.0  # rest after an entry into DP before anything is lear
 
 
 def default_mrac_config(vessel: VesselData, natural_period_s: float | None = None,
-                        guidance: ReferenceModelConfig | None = None, *, step_driven: bool = False) -> MracConfig:
+                        guidance: ReferenceModelConfig | None = None, *, step_driven: bool = False,
+                        reference: str = "model") -> MracConfig:
     """MRAC defaults for a vessel: nominal parameters from diag(M), diag(D), seed 003 reference model.
 
     The reference-model period is 200 s for the shuttle tankers (seed 003) and the Froude-scaled
@@ -417,6 +437,7 @@ def default_mrac_config(vessel: VesselData, natural_period_s: float | None = Non
     move through ``guidance`` (default: the vessel's :func:`default_reference_config`), see
     :func:`reference_excitation`. ``step_driven``: the reference model is driven by the raw set-point
     steps, as in seed 003's single-DOF study (:mod:`sim_plant.bench.offloading_case`), not by a guidance.
+    ``reference``: see :class:`MracConfig` (``guidance``: Γ and the gating from the guidance's own move).
     """
     period = float(natural_period_s) if natural_period_s is not None else default_natural_period_s(vessel)
     periods = (period, period, period)
@@ -434,7 +455,7 @@ def default_mrac_config(vessel: VesselData, natural_period_s: float | None = Non
         velocity = tuple(_GATING_FRACTION * omega * ell / math.e for ell in excitation)
     else:
         moves = reference_excitation(guidance if guidance is not None else default_reference_config(vessel),
-                                     periods, zetas, excitation)
+                                     periods, zetas, excitation, guided=reference == "guidance")
         gain_m, _ = adaptation_gains(mass, periods, zetas, excitation,
                                      adaptation_time_constant_s=_ADAPTATION_PERIODS_GUIDED * period,
                                      excitation_energy=moves.energy)
@@ -452,6 +473,7 @@ def default_mrac_config(vessel: VesselData, natural_period_s: float | None = Non
         accel_threshold=accel,  # type: ignore[arg-type]
         velocity_threshold=velocity,  # type: ignore[arg-type]
         entry_rest_s=0.0 if step_driven else _ENTRY_REST_PERIODS * period,
+        reference="model" if step_driven else reference,
     )
 
 
@@ -462,7 +484,7 @@ def mrac_config_from_mapping(value: object, vessel: VesselData, path: str = "con
     ``damping_nominal``, ``adaptation_gain_mass``, ``adaptation_gain_damping``, ``dead_zone``,
     ``accel_threshold``, ``velocity_threshold`` (number or 3 numbers; yaw in rad), ``lyapunov_q``
     (2), ``mass_bounds_factor`` (2), ``damping_bounds_factor`` (2), ``leakage_per_s``, ``entry_rest_s``, ``regressor``
-    (``reference`` | ``plant``), ``adapt``
+    (``reference`` | ``plant``), ``reference`` (``model`` | ``guidance``, see :class:`MracConfig`), ``adapt``
     (bool, default true; false = the fixed PD of seed 003 eq. (25) at ``mass_nominal``).
     """
     section = Section.of(value, path)
@@ -470,7 +492,8 @@ def mrac_config_from_mapping(value: object, vessel: VesselData, path: str = "con
     period = section.raw("natural_period_s", None)
     if period is not None:
         period = section.number("natural_period_s", minimum=0.0, exclusive_minimum=True)
-    base = default_mrac_config(vessel, period)
+    reference = section.string("reference", "model", choices=REFERENCES)
+    base = default_mrac_config(vessel, period, reference=reference)
     kwargs: dict[str, Any] = {}
     for key, length in (("relative_damping", 3), ("mass_nominal", 3), ("damping_nominal", 3),
                         ("adaptation_gain_mass", 3), ("adaptation_gain_damping", 3), ("dead_zone", 3),
@@ -555,6 +578,7 @@ class MracController:
         const[C_ZETA] = config.relative_damping
         const[C_FLAGS] = (config.leakage_per_s, float(self._adapt), float(config.regressor == "reference"))
         const[C_ENTRY_REST] = config.entry_rest_s
+        const[C_GUIDED, 0] = float(config.reference == "guidance")
         self._const = const
         self._state = np.zeros((S_ROWS, 3))
         self._state[S_A2] = m_nom
@@ -641,15 +665,17 @@ class MracController:
         result = ERROR_INPUT
         if mask >= 0:
             try:
-                result = mrac_step(dt, eta_hat_n, nu_hat_b, bias, wind, reference.eta_d_n, mask, self._const,
-                                   self._state, out)
+                result = mrac_step(dt, eta_hat_n, nu_hat_b, bias, wind, reference.eta_d_n, reference.eta_dot_d_n,
+                                   reference.eta_ddot_d_n, mask, self._const, self._state, out)
             except TypeError:
                 result = ERROR_INPUT
         if result < 0:  # the arguments checked in order and converted: the first invalid one raises ValueError
             eta, nu, mask, bias, wind = checked_state_inputs(
                 eta_hat_n, nu_hat_b, dof_enabled, bias_hat_b=bias_hat_b, tau_wind_ff_b=tau_wind_ff_b, zero3=self._zero3)
             r = np.array(floats3("reference.eta_d_n", reference.eta_d_n))
-            result = mrac_step(dt, eta, nu, bias, wind, r, mask, self._const, self._state, out)
+            rd = np.array(floats3("reference.eta_dot_d_n", reference.eta_dot_d_n))
+            rdd = np.array(floats3("reference.eta_ddot_d_n", reference.eta_ddot_d_n))
+            result = mrac_step(dt, eta, nu, bias, wind, r, rd, rdd, mask, self._const, self._state, out)
         self._excited = result
         values = out.tolist()
         m0, m1, m2, c0, c1, c2, north, east, heading = values[OUT_PARAMETERS:]

@@ -331,3 +331,45 @@ def test_adapt_and_regressor_keys_select_the_fixed_pd_and_the_law() -> None:
     assert controller.mass_hat.tolist() == list(fixed.mass_nominal)
     assert out.parameters is not None and 0.0 < out.parameters["ref_model_north_m"] < 20.0
     assert not any(controller.excited)
+
+
+def test_a_guided_mrac_tracks_the_guidance_reference_itself() -> None:
+    """``reference: guidance``: y_M is η_d (one reference, no second lag) and, at nominal mass, the law is the PD
+    of eq. (25) on e = η̂ − η_d with the guidance's acceleration fed forward: u = â₂(η̈_d − β₁ė − β₀e) + â₁ẏ."""
+    config = dataclasses.replace(default_mrac_config(SUPPLY, reference="guidance"), adapt=False)
+    controller = MracController(config)
+    guidance = ReferenceModel(default_reference_config(SUPPLY))
+    guidance.reset(np.zeros(3))
+    eta = np.array([0.5, -0.2, 0.01])
+    nu = np.array([0.02, -0.01, 0.0005])
+    beta0, beta1 = config.beta0, config.beta1
+    m = np.array(config.mass_nominal)
+    c = np.array(config.damping_nominal)
+    for _ in range(300):  # into a 10 m, 10° move: the reference accelerates
+        reference = guidance.step(0.1, np.array([10.0, 5.0, math.radians(10.0)]))
+        out = controller.step(0.1, eta, nu, None, reference)
+    assert out.parameters is not None
+    y_m = [out.parameters[name] for name in REFERENCE_MODEL_NAMES]
+    np.testing.assert_allclose(y_m, reference.eta_d_n, rtol=0, atol=1e-12)  # the pose the operator sees
+    psi = eta[2]
+    rot = np.array([[math.cos(psi), math.sin(psi), 0.0], [-math.sin(psi), math.cos(psi), 0.0], [0.0, 0.0, 1.0]])
+    e = rot @ (eta - reference.eta_d_n)
+    ed = nu - rot @ reference.eta_dot_d_n
+    assert np.abs(reference.eta_ddot_d_n).max() > 0.0
+    np.testing.assert_allclose(out.error_b, e, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(out.tau_b, m * (rot @ reference.eta_ddot_d_n - beta1 * ed - beta0 * e) + c * nu,
+                               rtol=1e-9)
+
+
+def test_guided_gains_come_from_the_guidance_move_and_the_key_is_checked() -> None:
+    guided = default_mrac_config(SHUTTLE_TANKER, reference="guidance")
+    model = default_mrac_config(SHUTTLE_TANKER)
+    assert guided.reference == "guidance" and model.reference == "model"
+    assert guided.adaptation_gain_mass != model.adaptation_gain_mass  # the excitation of its own reference
+    assert control_config_from_mapping({"kind": "mrac", "reference": "guidance"}, SHUTTLE_TANKER).reference \
+        == "guidance"
+    with pytest.raises(ConfigError, match="reference"):
+        control_config_from_mapping({"kind": "mrac", "reference": "setpoint"}, SHUTTLE_TANKER)
+    tuned, m_true, _ = _ideal_surge_adaptation(guided, ReferenceModel(default_reference_config(SHUTTLE_TANKER)),
+                                               hours=1.5)
+    assert tuned.mass_hat[0] == pytest.approx(m_true, rel=0.05)  # learns as fast as the cascade's tuning
