@@ -77,6 +77,13 @@ class KeyRecord:
 REQUIRED = _MISSING
 """The default of a :class:`KeyRecord` whose key is required."""
 
+
+class VesselDefault(str):
+    """A default that depends on the vessel (``control.kind``): the value is this vessel's, and the configuration
+    reference writes ``per vessel`` for it instead (a string like any other to the parsers)."""
+
+    __slots__ = ()
+
 class _KeyLog:
     """What :func:`recording_keys` collects: the records, and the discriminator (``kind``, ``protocol``) read in
     each section so far, by the section's full path (``transports[2]``)."""

@@ -93,6 +93,7 @@ def _cmd_check_config(args: argparse.Namespace) -> int:
     print(f"{args.file}: OK — vessel {config.vessel.name} as '{config.vessel_id}', {config.rate_hz:g} Hz, "
           f"estimator {config.estimator.kind}, control {config.control.kind}, "
           f"{len(config.vessel.thrusters)} thrusters, sensors: {sensors}; {security}")
+    print(f"{args.file}: {config.control.origin(config.vessel.name)}")
     for notice in config.notices:  # accepted, but the file should change
         print(f"{args.file}: warning: {notice}", file=sys.stderr)
     return 0

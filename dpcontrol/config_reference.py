@@ -19,7 +19,7 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
-from dpbase.schema import REQUIRED, ConfigError, KeyRecord, recording_keys
+from dpbase.schema import REQUIRED, ConfigError, KeyRecord, VesselDefault, recording_keys
 from dpbase.yamlfile import read_yaml_file
 from dpcontrol.runtime.config import CONTROL_KINDS, ESTIMATOR_KINDS, parse_config
 
@@ -98,6 +98,8 @@ def _default(record: KeyRecord) -> str:
     value = record.default
     if value is None:
         return "—"
+    if isinstance(value, VesselDefault):  # (this vessel's: configuration.md has the rule)
+        return "per vessel"
     if isinstance(value, float) and math.isfinite(value):
         return f"`{value:g}`"
     if isinstance(value, bool):

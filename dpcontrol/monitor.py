@@ -52,6 +52,9 @@ _PANEL_WIDTH = 62
 _DASH = "—"
 _STATE_STYLE = {"ok": "green", "waiting": "dim", "isolated": "red", "stale": "yellow", "frozen": "red",
                 "rejected": "red", "invalid": "red", "disconnected": "bold red"}
+# what an MRAC mass estimate does (control.mrac.state): learning is the normal case, held for want of excitation
+# too, stopped by the supervision is the alarm control.adaptation
+_ADAPTATION_STYLE = {"adapting": "green", "frozen": "cyan", "suspended": "bold red", "off": "dim"}
 _SEVERITY_STYLE = {"info": "cyan", "warning": "yellow", "alarm": "red", "critical": "bold white on red"}
 
 
@@ -385,11 +388,29 @@ def _control_panel(state: MonitorState) -> Panel:
                       *(_fmt(_get(mass, k), ".5g", 1e-3) for k in ("surge_kg", "sway_kg", "yaw_kgm2")))
         _row(table, "MRAC damping [t/s …]",
                       *(_fmt(_get(damping, k), ".5g", 1e-3) for k in ("surge_kgps", "sway_kgps", "yaw_kgm2ps")))
+        adaptation = _adaptation_cells(mrac)
+        if adaptation is not None:
+            _row(table, "MRAC mass / nominal", *adaptation)
     else:
         _row(table, "MRAC", "off", "", "")
     controller = _get(control, "controller")
     name = "Control" + (f" · {controller}" if isinstance(controller, str) else "")
     return Panel(table, title=_title(state, "control", name), title_align="left")
+
+
+def _adaptation_cells(mrac: Mapping[str, Any]) -> list[Text] | None:
+    """Per DOF ``1.12× adapting``: the mass estimate over its nominal value and what it does, coloured by the
+    state (``control.mrac.ratio`` / ``state``); None when the daemon does not send them."""
+    ratio, states = _get(mrac, "ratio"), _get(mrac, "state")
+    if not isinstance(ratio, Mapping) and not isinstance(states, Mapping):
+        return None
+    cells = []
+    for dof in ("surge", "sway", "yaw"):
+        value = _number(_get(ratio, dof))
+        what = _get(states, dof)
+        text = (_DASH if value is None else f"{value:.2f}×") + (f" {_text(what, 10)}" if isinstance(what, str) else "")
+        cells.append(Text(text, style=_ADAPTATION_STYLE.get(str(what), "")))
+    return cells
 
 
 def _sensors_panel(state: MonitorState) -> Panel:

@@ -2,7 +2,14 @@
 
 from dpcontrol.control.autopilot import AutopilotConfig, AutopilotController, AutopilotOutput, HeadingAutopilot
 from dpcontrol.control.base import ALL_DOFS, HEADING_ONLY, ControlOutput, MassAdaptation, PositionController
-from dpcontrol.control.factory import CONTROL_KINDS, ControlConfig, control_config_from_mapping, make_controller
+from dpcontrol.control.factory import (
+    CONTROL_KINDS,
+    ControlConfig,
+    DefaultControl,
+    control_config_from_mapping,
+    default_control,
+    make_controller,
+)
 from dpcontrol.control.mrac import MracConfig, MracController, default_mrac_config
 from dpcontrol.control.pid import PidConfig, PidController, default_pid_config, pole_placement_gains
 from dpcontrol.control.wind import (
@@ -22,6 +29,7 @@ __all__ = [
     "BlendermannCoefficients",
     "ControlConfig",
     "ControlOutput",
+    "DefaultControl",
     "HeadingAutopilot",
     "MassAdaptation",
     "MracConfig",
@@ -32,6 +40,7 @@ __all__ = [
     "TabulatedCoefficients",
     "WindFeedforward",
     "control_config_from_mapping",
+    "default_control",
     "default_mrac_config",
     "default_pid_config",
     "make_controller",

@@ -24,6 +24,13 @@ DofMask = tuple[bool, bool, bool]
 ALL_DOFS: DofMask = (True, True, True)
 HEADING_ONLY: DofMask = (False, False, True)
 
+#: What an inertia estimate is doing, per DOF (:meth:`MassAdaptation.adaptation_states`, the ``control`` and
+#: ``status`` payloads, the monitor): ``adapting`` — the law moved or could move it lately (the reference model
+#: excited it); ``frozen`` — adaptation on but nothing to learn from (no excitation lately): the estimate is held;
+#: ``suspended`` — the supervision stopped the adaptation (alarm ``control.adaptation``): nominal parameters until a
+#: restart; ``off`` — configured not to adapt (``adapt: false``): nominal parameters.
+ADAPTATION_STATES: tuple[str, ...] = ("adapting", "frozen", "suspended", "off")
+
 
 @dataclass(frozen=True, eq=False)
 class ControlOutput:
@@ -59,7 +66,8 @@ class MassAdaptation(Protocol):
     """What a controller that estimates the vessel's inertia offers its supervisor (the MRAC, seed 003).
 
     The runtime reads it through :attr:`PositionController.mass_adaptation` to stop an estimate that ran onto
-    its projection bound and to hand the estimate to the wave filter, without knowing the controller's kind.
+    its projection bound, to hand the estimate to the wave filter and to show the operator the estimates against
+    nominal with what each is doing (:meth:`adaptation_states`), without knowing the controller's kind.
     """
 
     @property
@@ -88,6 +96,10 @@ class MassAdaptation(Protocol):
 
     def suspend_adaptation(self) -> None:
         """Return to the nominal parameters and adapt no more (until a restart)."""
+        ...
+
+    def adaptation_states(self) -> tuple[str, str, str]:
+        """Per DOF (surge, sway, yaw): one of :data:`ADAPTATION_STATES` (for the operator's displays)."""
         ...
 
 

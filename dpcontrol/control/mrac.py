@@ -117,6 +117,7 @@ from scipy.linalg import expm, solve_continuous_lyapunov
 from dpbase.frames import ssa
 from dpbase.schema import ConfigError, Section, check_vector
 from dpcontrol.control.base import (
+    ADAPTATION_STATES,
     ALL_DOFS,
     ControlOutput,
     check_dt,
@@ -424,6 +425,15 @@ _DEAD_ZONE_PER_LENGTH = 2e-4
 _DEAD_ZONE_YAW_RAD = math.radians(0.05)
 _GATING_FRACTION = 0.05
 _ENTRY_REST_PERIODS = 1.0  # rest after an entry into DP before anything is learnt, in reference-model periods
+# How long a DOF reads "adapting" after its gate last opened (MracController.adaptation_states), in reference-model
+# periods, and at least _ADAPTING_HOLD_MIN_S. Within one move the gate closes while ÿ_M passes through zero
+# (|ÿ_M| below the gate): measured for the typical move (0.08 L) through the default guidance, 0.033 T_M — 6.5 s
+# of the tanker's 350 s move (T_M = 200 s), 4.3 s for the supply vessel. 0.05 T_M bridges that, so a move reads
+# "adapting" from its start to its end and "frozen" follows within 0.05 T_M of its end (10 s for the tanker). The
+# floor keeps a short burst on a small vessel (CyberShip II: T_M = 17 s, gap 0.5 s) on screen for a few of the
+# displays' redraws.
+_ADAPTING_HOLD_PERIODS = 0.05
+_ADAPTING_HOLD_MIN_S = 2.0
 
 
 def default_mrac_config(vessel: VesselData, natural_period_s: float | None = None,
@@ -584,6 +594,13 @@ class MracController:
         self._state[S_A2] = m_nom
         self._state[S_A1] = c_nom
         self._excited = 0  # bit i: the reference model excited DOF i's mass adaptation at the last step
+        self._suspended = False  # the supervision stopped the adaptation (suspend_adaptation)
+        # for adaptation_states: the time stepped since construction [s] (the sum of the steps' dt: no clock in the
+        # core), when each DOF's gate last opened on it, and how long a DOF reads "adapting" after that [s]
+        self._clock_s = 0.0
+        self._excited_at_s = [-math.inf, -math.inf, -math.inf]
+        self._adapting_hold_s = tuple(max(_ADAPTING_HOLD_PERIODS * t, _ADAPTING_HOLD_MIN_S)
+                                      for t in config.natural_period_s)
         self._mass_low = tuple(const[C_A2_LO].tolist())  # the projection bounds as floats (_set_mass)
         self._mass_high = tuple(const[C_A2_HI].tolist())
         self._set_mass(m_nom[0], m_nom[1], m_nom[2])  # â₂ as floats (mass_hat_floats), updated when it changes
@@ -614,6 +631,31 @@ class MracController:
         """Per DOF: the reference model excited the mass adaptation at the last step (gate open)."""
         bits = self._excited
         return (bits & 1 != 0, bits & 2 != 0, bits & 4 != 0)  # (MASS_CHANGED is bit 3)
+
+    @property
+    def adapting_hold_s(self) -> tuple[float, float, float]:
+        """How long after its gate last opened a DOF still reads ``adapting`` [s] (see :meth:`adaptation_states`)."""
+        hold = self._adapting_hold_s
+        return (hold[0], hold[1], hold[2])
+
+    def adaptation_states(self) -> tuple[str, str, str]:
+        """Per DOF (surge, sway, yaw): what its mass estimate is doing, one of :data:`ADAPTATION_STATES`.
+
+        ``off`` when configured not to adapt (``adapt: false``), ``suspended`` after :meth:`suspend_adaptation`
+        (all DOFs: the supervision stops the whole law), else ``adapting`` while the reference model excited the
+        DOF (gate open: the law moves the estimate unless the error is inside the dead zone) within the last
+        :attr:`adapting_hold_s`, ``frozen`` otherwise (nothing to learn from: the estimate is held). Computed
+        when asked (a display's rate), from what :meth:`step` keeps at the cost of one addition per step.
+        """
+        adapting, frozen, suspended, off = ADAPTATION_STATES
+        if not self._adapt:
+            state = suspended if self._suspended else off
+            return (state, state, state)
+        now = self._clock_s
+        at = self._excited_at_s
+        hold = self._adapting_hold_s
+        return (adapting if now - at[0] <= hold[0] else frozen, adapting if now - at[1] <= hold[1] else frozen,
+                adapting if now - at[2] <= hold[2] else frozen)
 
     @property
     def mass_hat(self) -> np.ndarray:
@@ -677,6 +719,12 @@ class MracController:
             rdd = np.array(floats3("reference.eta_ddot_d_n", reference.eta_ddot_d_n))
             result = mrac_step(dt, eta, nu, bias, wind, r, rd, rdd, mask, self._const, self._state, out)
         self._excited = result
+        self._clock_s = now = self._clock_s + dt
+        if result & 7:  # a gate open (bits 1, 2, 4; MASS_CHANGED is 8): when, for adaptation_states
+            at = self._excited_at_s
+            for i in range(3):
+                if result >> i & 1:
+                    at[i] = now
         values = out.tolist()
         m0, m1, m2, c0, c1, c2, north, east, heading = values[OUT_PARAMETERS:]
         if result & MASS_CHANGED:
@@ -717,6 +765,7 @@ class MracController:
         controller adapts again (from the estimates saved, the nominal ones after a suspension).
         """
         self._adapt = False
+        self._suspended = True
         self._const[C_FLAGS, 1] = 0.0
         self._excited = 0
         self.reset_parameters()
@@ -733,6 +782,7 @@ class MracController:
         state[S_COMMAND] = 0.0
         state[S_FLAGS, 1] = 0.0
         state[S_REST] = 0.0  # the entry's glide teaches nothing: learn after entry_rest_s of rest
+        self._excited_at_s[:] = (-math.inf, -math.inf, -math.inf)  # a new entry has learnt nothing yet
 
     def reset_parameters(self) -> None:
         """Parameter estimates back to the nominal values."""

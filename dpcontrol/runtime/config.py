@@ -15,15 +15,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from dpbase.schema import ConfigError, Section, join, parse_list
+from dpbase.schema import ConfigError, Section, VesselDefault, join, parse_list
 from dpbase.yamlfile import load_yaml, read_yaml_file
 from dpcontrol.allocation.allocator import allocator_kwargs_from_mapping
 from dpcontrol.allocation.consequence import FailureGroup
-from dpcontrol.control import CONTROL_KINDS, ControlConfig, control_config_from_mapping
+from dpcontrol.control import CONTROL_KINDS, ControlConfig, DefaultControl, control_config_from_mapping, default_control
 from dpcontrol.estimation import WaveFilterConfig
 from dpcontrol.estimation.filter_config import DEFAULT_OMEGAS_RAD_S
 from dpcontrol.guidance import ReferenceModelConfig, reference_config_from_mapping
-from dpcontrol.models.vessels import VesselData, vessel_from_config
+from dpcontrol.models.vessels import BUILTIN_VESSELS, VesselData, vessel_from_config
 from dpcontrol.runtime.consequence import ConsequenceSettings
 from dpcontrol.runtime.deviation import DeviationSettings
 from dpcontrol.runtime.hub import HubConfig, SensorConfig, SensorKind
@@ -112,6 +112,18 @@ class ControlSettings:
 
     kind: str
     config: ControlConfig
+    default: DefaultControl | None = None  # the vessel's default controller and why (None: not known)
+    configured: bool = True  # the file gives control.kind (False: the vessel's default runs)
+
+    def origin(self, vessel_name: str) -> str:
+        """For ``check-config``: the controller, whether the file chose it or it is the vessel's default, and why."""
+        if self.default is None:
+            return f"control {self.kind}: configured (control.kind)"
+        if self.configured:
+            return (f"control {self.kind}: configured (control.kind; the default for vessel {vessel_name} is "
+                    f"{self.default.describe()})")
+        return (f"control {self.default.describe()}: the default for vessel {vessel_name} (no control.kind given) "
+                f"— {self.default.reason}")
 
 
 @dataclass(frozen=True)
@@ -422,10 +434,22 @@ def _parse_estimator(section: Section, vessel: VesselData, rate_hz: float,
     return EstimatorSettings(kind, wave_filter, {}, tuple(notices))
 
 
-def _parse_control(section: Section, vessel: VesselData) -> ControlSettings:
-    kind = section.string("kind", "mrac", choices=CONTROL_KINDS)
+def _parse_control(section: Section, vessel: VesselData, builtin: str | None, estimator_kind: str) -> ControlSettings:
+    """``control:``; without a ``kind`` the controller measured to hold the vessel (:func:`default_control`)."""
+    default = default_control(builtin, course_keeping=estimator_kind == "heading_kf")
+    given = section.raw("kind", None) is not None
+    kind = str(section.string("kind", VesselDefault(default.section["kind"]), choices=CONTROL_KINDS))
     section._read.update(section.data)  # (the kind's own parser reads and checks every key)
-    return ControlSettings(kind, control_config_from_mapping(dict(section.data), vessel, section.path))
+    data = dict(section.data) if given else {**default.section, **section.data}  # (the file's keys override)
+    if builtin is not None and builtin != vessel.name:  # (a vessel of the file's own, on a built-in's base)
+        default = DefaultControl(default.section, f"based on {builtin}: {default.reason}")
+    return ControlSettings(kind, control_config_from_mapping(data, vessel, section.path), default, configured=given)
+
+
+def _builtin_vessel(value: object) -> str | None:
+    """The built-in vessel a ``vessel:`` value names or is based on (``base:``), None for one of its own."""
+    name = value.get("base") if isinstance(value, Mapping) else value
+    return name if isinstance(name, str) and name in BUILTIN_VESSELS else None
 
 
 def parse_config(mapping: object, *, file: str | None = None, text: str = "",
@@ -500,7 +524,7 @@ def _parse(mapping: object, text: str, file: str | None, given: tuple[TransportC
 
     estimator = _parse_estimator(root.section("estimator"), vessel, rate, routes)
     guidance = reference_config_from_mapping(root.raw("guidance", None), vessel, "guidance")
-    control = _parse_control(root.section("control"), vessel)
+    control = _parse_control(root.section("control"), vessel, _builtin_vessel(root.raw("vessel")), estimator.kind)
     if (control.kind == "autopilot") != (estimator.kind == "heading_kf"):
         raise ConfigError("control.kind", "autopilot together with estimator kind heading_kf (course keeping), "
                           "or a DP controller with a DP estimator", control.kind)

@@ -348,6 +348,25 @@ class DpController:
         :data:`RECENT_REQUESTS`)."""
         return [outcome for outcome in self.recent_requests if outcome.t_s >= t_s]
 
+    @property
+    def mass_adaptation(self) -> MassAdaptation | None:
+        """The controller's inertia estimation (the MRAC), None for a controller with fixed parameters."""
+        return self._mrac
+
+    def adaptation_summary(self) -> tuple[tuple[str, str, str], tuple[float, float, float]] | None:
+        """Per DOF (surge, sway, yaw) what the mass estimate does and its ratio to nominal, for the status.
+
+        ``(states, ratios)``: :meth:`MassAdaptation.adaptation_states` and ``â₂ / a₂(0)`` [-]; None without an
+        inertia estimation and when the controller did not run at the last step (standby, no estimate yet: the
+        ``control`` payload has no ``mrac`` then either). Built when the status is, not every step.
+        """
+        adaptation = self._mrac
+        if adaptation is None or self.out.mrac is None:
+            return None
+        mass = adaptation.mass_hat_floats
+        nominal = adaptation.mass_nominal
+        return adaptation.adaptation_states(), (mass[0] / nominal[0], mass[1] / nominal[1], mass[2] / nominal[2])
+
     def check_consequences(self, t_s: float) -> ConsequenceReport | None:
         """The worst-case failure check (:mod:`dpcontrol.runtime.consequence`) on the step just taken at ``t_s`` [s]:
         its mode, commanded force and the thrusters in use. Not part of :meth:`step` — a few QP solves once a

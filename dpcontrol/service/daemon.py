@@ -90,8 +90,8 @@ def status_payload(controller: DpController, alarms: AlarmRegistry, t_s: float, 
     thruster availability, cycle timing, the outcome of the last operator request (and of every one taken in
     the last second: several in one cycle, from two consoles, each get their answer) and the last worst-case
     failure check (in DP, when failure groups are configured), and the drives as the daemon sees them
-    (``drives``: a monitor or console shows the daemon's view, not its own session's). The lockstep
-    simulation builds the same payload."""
+    (``drives``: a monitor or console shows the daemon's view, not its own session's), and in DP what the MRAC's
+    mass estimates do (``adaptation``). The lockstep simulation builds the same payload."""
     # texts are bounded by the status schema (256 characters)
     sensors = [schemas.SensorHealth(s["name"], s["kind"], s["state"], s["age_s"], s["weight"], s["detail"][:256])
                for s in controller.hub.sensor_status(t_s)]
@@ -103,11 +103,13 @@ def status_payload(controller: DpController, alarms: AlarmRegistry, t_s: float, 
     consequence = None if report is None else schemas.WorstCaseCheck(
         report.t_s, tuple(report.demand_b.tolist()),
         tuple(schemas.FailureGroupOutcome(o.group, o.holds, o.utilisation, o.busiest) for o in report.outcomes))
+    adaptation = controller.adaptation_summary()
     return schemas.status_payload(t_s=t_s, seq=seq, mode=controller.mode.value, sensors=sensors,
                                   alarms=listed, cycle=cycle, thrusters=thrusters, request=controller.last_request,
                                   requests=controller.requests_since(t_s - RECENT_REQUESTS_S), consequence=consequence,
                                   drives=drives,
-                                  wave_band=None if controller.wave_band is None else controller.wave_band.summary())
+                                  wave_band=None if controller.wave_band is None else controller.wave_band.summary(),
+                                  adaptation=None if adaptation is None else schemas.AdaptationSummary(*adaptation))
 
 
 def consequence_record(report: ConsequenceReport) -> dict[str, Any]:
@@ -786,6 +788,7 @@ class Daemon:
                                                      sea_states=self._sea_states))
         mrac = out.mrac
         reference = out.reference
+        adaptation = None if mrac is None else self.controller.mass_adaptation  # (the MRAC, stepped this cycle)
         pub["control"].put(schemas.control_payload(
             t_s=t_s, seq=seq, controller=self.config.control.kind, tau_b=out.tau_b, setpoint_n=out.setpoint_n,
             reference_n=None if reference is None else reference.eta_d_n, tau_achieved_b=out.tau_achieved_b,
@@ -793,7 +796,9 @@ class Daemon:
             mrac_mass=None if mrac is None else [mrac.get("mass_surge_kg"), mrac.get("mass_sway_kg"),
                                                  mrac.get("inertia_yaw_kgm2")],
             mrac_damping=None if mrac is None else [mrac.get("damping_surge_nspm"), mrac.get("damping_sway_nspm"),
-                                                    mrac.get("damping_yaw_nmsprad")]))
+                                                    mrac.get("damping_yaw_nmsprad")],
+            mrac_nominal=None if adaptation is None else adaptation.mass_nominal,
+            mrac_state=None if adaptation is None else adaptation.adaptation_states()))
         pub["status"].put(self._status_payload(t_s, seq))
 
     def _status_payload(self, t_s: float, seq: int) -> bytes:

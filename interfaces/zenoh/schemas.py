@@ -62,7 +62,9 @@ Schemas (version 1; ``?`` = may be ``null``)
     setpoint?: {north_m?, east_m?, heading_rad?}
     reference?: {north_m?, east_m?, heading_rad?, surge_mps?, sway_mps?, yaw_rate_radps?}
     tau_b?, tau_achieved_b?, shortfall_b?: {x_n?, y_n?, n_nm?}
-    mrac?: {mass: {surge_kg?, sway_kg?, yaw_kgm2?}, damping: {surge_kgps?, sway_kgps?, yaw_kgm2ps?}}
+    mrac?: {mass: {surge_kg?, sway_kg?, yaw_kgm2?}, damping: {surge_kgps?, sway_kgps?, yaw_kgm2ps?},
+            nominal: {surge_kg?, sway_kg?, yaw_kgm2?}, ratio: {surge?, sway?, yaw?},   mass / nominal [-]
+            state: {surge, sway, yaw}}   adapting | frozen | suspended | off; these three may be absent
 
 ``dpcontrol.status/1``::
 
@@ -76,6 +78,8 @@ Schemas (version 1; ``?`` = may be ``null``)
     consequence?: {t_s, demand_b: {x_n, y_n, n_nm}, groups: [{name, holds, utilisation?, busiest?}]}   worst case
     drives?: {present, seen, feedback_age_s?}   the plant/drives as the daemon sees them: their liveliness
                                                  token, and the age of the last thruster feedback it received
+    adaptation?: {state: {surge, sway, yaw}, ratio: {surge?, sway?, yaw?}}   the MRAC's mass estimates in DP: what
+                                                 each does and its ratio to nominal (absent: no MRAC, or standby)
 
 ``dpcontrol.setpoint/1`` (operator → daemon, ``dp/<vessel>/setpoint``) — see :func:`parse_setpoint`;
 here ``?`` means the field may be left out (or be ``null``: not given)::
@@ -123,6 +127,10 @@ SENSOR_STATES: tuple[str, ...] = ("ok", "waiting", "stale", "frozen", "rejected"
                                   "disconnected")
 SEVERITIES: tuple[str, ...] = ("info", "warning", "alarm", "critical")
 BIAS_FRAMES: tuple[str, ...] = ("ned", "body")
+#: What an MRAC inertia estimate is doing, per DOF (``control.mrac.state``, ``status.adaptation.state``): moved by the
+#: law lately, held for want of excitation, stopped by the supervision (alarm ``control.adaptation``), configured off.
+#: The controller's :data:`dpcontrol.control.base.ADAPTATION_STATES` (a test keeps the two equal).
+ADAPTATION_STATES: tuple[str, ...] = ("adapting", "frozen", "suspended", "off")
 
 #: Every ``Rejected.reason`` a parser here can return.
 REJECT_REASONS: frozenset[str] = frozenset({
@@ -475,6 +483,10 @@ MMAE = Schema("dpcontrol.mmae", 1, Record({
     "sea_state": Text(pattern=_IDENT, max_len=32, nullable=True),
 }), cross_check=_check_mmae)
 
+# an MRAC estimate against nominal [-] (its projection keeps it within [0.3, 5] by default) and what it does, per DOF
+_ADAPTATION_RATIO = Record({dof: Number(0.0, 1e6, nullable=True) for dof in ("surge", "sway", "yaw")})
+_ADAPTATION_STATE = Record({dof: Text(choices=ADAPTATION_STATES) for dof in ("surge", "sway", "yaw")})
+
 CONTROL = Schema("dpcontrol.control", 1, Record({
     "controller": Text(pattern=_IDENT, max_len=32),
     "setpoint": _pose(),
@@ -485,7 +497,11 @@ CONTROL = Schema("dpcontrol.control", 1, Record({
     "mrac": Record({
         "mass": Record({"surge_kg": _positive(), "sway_kg": _positive(), "yaw_kgm2": _positive()}),
         "damping": Record({"surge_kgps": _positive(), "sway_kgps": _positive(), "yaw_kgm2ps": _positive()}),
-    }, nullable=True),
+        # added in version 1 (optional: a publisher from before them stays valid)
+        "nominal": Record({"surge_kg": _positive(), "sway_kg": _positive(), "yaw_kgm2": _positive()}),
+        "ratio": _ADAPTATION_RATIO,
+        "state": _ADAPTATION_STATE,
+    }, optional=("nominal", "ratio", "state"), nullable=True),
 }))
 
 _REQUEST_OUTCOME = Record({"seq": Integer(0, _MAX_SEQ), "t_s": Number(0.0, _MAX_TIME_S),
@@ -517,7 +533,8 @@ STATUS = Schema("dpcontrol.status", 1, Record({
     "drives": Record({"present": Flag(), "seen": Flag(), "feedback_age_s": Number(0.0, _MAX_TIME_S, nullable=True)}),
     "wave_band": Record({"force_n": Number(0.0, _MAX_FORCE_N), "moment_nm": Number(0.0, _MAX_FORCE_N),
                          "lf_position_m": Number(0.0, 1e6), "lf_heading_deg": Number(0.0, 360.0)}),
-}, optional=("request", "requests", "consequence", "drives", "wave_band")))
+    "adaptation": Record({"state": _ADAPTATION_STATE, "ratio": _ADAPTATION_RATIO}),
+}, optional=("request", "requests", "consequence", "drives", "wave_band", "adaptation")))
 
 SETPOINT = Schema("dpcontrol.setpoint", 1, Record({
     "mode": Text(choices=MODES, nullable=True),
@@ -990,7 +1007,8 @@ def mmae_payload(*, t_s: float, seq: int, omegas_rad_s: Any, weights: Any, omega
 
 def control_payload(*, t_s: float, seq: int, controller: str, tau_b: Any, setpoint_n: Any = None,  # noqa: PLR0913 - one keyword-only argument per field of the payload
                     reference_n: Any = None, reference_nu_b: Any = None, tau_achieved_b: Any = None,
-                    shortfall_b: Any = None, mrac_mass: Any = None, mrac_damping: Any = None) -> bytes:
+                    shortfall_b: Any = None, mrac_mass: Any = None, mrac_damping: Any = None,
+                    mrac_nominal: Any = None, mrac_state: Sequence[str] | None = None) -> bytes:
     """Encode the controller state.
 
     Parameters
@@ -1010,6 +1028,12 @@ def control_payload(*, t_s: float, seq: int, controller: str, tau_b: Any, setpoi
     mrac_mass, mrac_damping : array_like, shape (3,), optional
         MRAC estimates of mass ``[kg, kg, kg·m²]`` and linear damping ``[kg/s, kg/s, kg·m²/s]``
         per DOF (seed 003); ``mrac`` is ``null`` when both are omitted.
+    mrac_nominal : array_like, shape (3,), optional
+        The nominal masses the estimates start from ``[kg, kg, kg·m²]``: with ``mrac_mass`` also their ratio
+        (``mrac.nominal``, ``mrac.ratio``; absent when omitted).
+    mrac_state : 3 str, optional
+        What each mass estimate does, one of :data:`ADAPTATION_STATES` per DOF (``mrac.state``; absent when
+        omitted).
     """
     reference = None
     if reference_n is not None or reference_nu_b is not None:
@@ -1018,12 +1042,17 @@ def control_payload(*, t_s: float, seq: int, controller: str, tau_b: Any, setpoi
                          or {"surge_mps": None, "sway_mps": None, "yaw_rate_radps": None})
     if shortfall_b is None and tau_b is not None and tau_achieved_b is not None:
         shortfall_b = np.asarray(tau_b, dtype=float) - np.asarray(tau_achieved_b, dtype=float)
-    mrac = None
+    mrac: dict[str, Any] | None = None
     if mrac_mass is not None or mrac_damping is not None:
         mrac = {"mass": _vec3(mrac_mass, ("surge_kg", "sway_kg", "yaw_kgm2"))
                 or {"surge_kg": None, "sway_kg": None, "yaw_kgm2": None},
                 "damping": _vec3(mrac_damping, ("surge_kgps", "sway_kgps", "yaw_kgm2ps"))
                 or {"surge_kgps": None, "sway_kgps": None, "yaw_kgm2ps": None}}
+        if mrac_nominal is not None:
+            mrac["nominal"] = _vec3(mrac_nominal, ("surge_kg", "sway_kg", "yaw_kgm2"))
+            mrac["ratio"] = _adaptation_ratio(mrac_mass, mrac_nominal)
+        if mrac_state is not None:
+            mrac["state"] = _per_dof(mrac_state)
     return _encode({"schema": CONTROL.id, "t_s": float(t_s), "seq": int(seq), "controller": controller,
                     "setpoint": _pose_dict(setpoint_n), "reference": reference,
                     "tau_b": _vec3(tau_b, _FORCE), "tau_achieved_b": _vec3(tau_achieved_b, _FORCE),
@@ -1105,18 +1134,43 @@ class DrivesSeen:
     feedback_age_s: float | None
 
 
+@dataclass(frozen=True, slots=True)
+class AdaptationSummary:
+    """What the MRAC's mass estimates do, per DOF (surge, sway, yaw): one of :data:`ADAPTATION_STATES` each, and
+    the estimate over its nominal value [-] (None: not a number)."""
+
+    state: tuple[str, str, str]
+    ratio: tuple[float | None, float | None, float | None]
+
+
+def _per_dof(values: Sequence[Any]) -> dict[str, Any]:
+    surge, sway, yaw = values
+    return {"surge": surge, "sway": sway, "yaw": yaw}
+
+
+def _adaptation_ratio(mass: Any, nominal: Any) -> dict[str, float | None]:
+    """``mass / nominal`` per DOF (None where either is missing, not finite or the nominal not > 0)."""
+    ratios: list[float | None] = []
+    for m, n in zip(_floats(mass) if mass is not None else (None, None, None), _floats(nominal), strict=True):
+        ratios.append(_num(m / n) if m is not None and n is not None and n > 0.0 else None)
+    return _per_dof(ratios)
+
+
 def status_payload(*, t_s: float, seq: int, mode: str, sensors: Sequence[SensorHealth] = (),  # noqa: PLR0913 - one keyword-only argument per field of the payload
                    alarms: Sequence[Alarm] = (), cycle: CycleTiming | None = None,
                    thrusters: Sequence[ThrusterAvailability] = (), request: RequestOutcome | None = None,
                    consequence: WorstCaseCheck | None = None, requests: Sequence[RequestOutcome] = (),
                    drives: DrivesSeen | None = None,
-                   wave_band: Mapping[str, float] | None = None) -> bytes:
+                   wave_band: Mapping[str, float] | None = None,
+                   adaptation: AdaptationSummary | None = None) -> bytes:
     """Encode the daemon status: mode, per-sensor health, alarms, cycle timing, thruster availability, the
     outcome of the last operator request (``request``, absent before the first) and of each one taken lately
     (``requests``, oldest first, the last 16 at most; absent when none), and the last worst-case failure check
     (``consequence``, absent when none ran: not configured, or not in DP), and how much wave motion reaches
     the controller (``wave_band``: the wave-band std of the commanded horizontal force [N] and yaw moment [N·m]
-    and of the LF position [m] and heading [deg] estimate; absent outside DP and in the first averaging time)."""
+    and of the LF position [m] and heading [deg] estimate; absent outside DP and in the first averaging time),
+    and what the MRAC's mass estimates do (``adaptation``: per DOF the state and the ratio to nominal; absent
+    without an MRAC and outside DP)."""
     extra: dict[str, Any] = {} if request is None else {"request": _request_outcome(request)}
     if drives is not None:
         extra["drives"] = {"present": bool(drives.present), "seen": bool(drives.seen),
@@ -1133,6 +1187,9 @@ def status_payload(*, t_s: float, seq: int, mode: str, sensors: Sequence[SensorH
         extra["wave_band"] = {"force_n": float(wave_band["force_n"]), "moment_nm": float(wave_band["moment_nm"]),
                               "lf_position_m": float(wave_band["lf_position_m"]),
                               "lf_heading_deg": math.degrees(float(wave_band["lf_heading_rad"]))}
+    if adaptation is not None:
+        extra["adaptation"] = {"state": _per_dof(adaptation.state),
+                               "ratio": _per_dof([_num(r) for r in adaptation.ratio])}
     return _encode({
         "schema": STATUS.id, "t_s": float(t_s), "seq": int(seq), "mode": mode,
         "sensors": [{"name": s.name, "kind": s.kind, "state": s.state, "age_s": _num(s.age_s),

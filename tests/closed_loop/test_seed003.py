@@ -183,3 +183,26 @@ def test_runtime_wraps_the_filter_only_for_an_adapting_mrac() -> None:
     fixed = build_simulation(scenario, overrides={"control": {"kind": "mrac", "adapt": False}}).controller
     assert isinstance(adaptive.estimator, MassAdaptiveEstimator)
     assert not isinstance(fixed.estimator, MassAdaptiveEstimator)
+
+
+def test_the_status_tells_the_operator_what_the_mass_estimates_do() -> None:
+    """``status.adaptation`` through the daemon's own builder and the schema: in DP the surge mass reads frozen
+    while the tanker holds station (nothing to learn from), adapting through the first 20 m correction (t = 1800 s)
+    with its ratio to nominal moving, frozen again after it; sway and yaw, never excited, stay frozen."""
+    from sim_plant.bench.lockstep import ProbedRun  # noqa: PLC0415
+
+    run = ProbedRun.run(build_simulation(load_scenario(builtin_scenario_path("tanker-seed003"))), status_every_s=5.0,
+                        duration_s=2400.0)
+    samples = [(t, msg["adaptation"]) for t, msg in run.status.samples]
+    assert all(isinstance(msg, dict) for _, msg in run.status.samples)
+    assert samples[0][1] is None  # standby: no controller step, no summary
+    engaged = [(t, a) for t, a in samples if a is not None]
+    surge = [(t, a["state"]["surge"]) for t, a in engaged]
+    assert {a["state"]["sway"] for _, a in engaged} == {a["state"]["yaw"] for _, a in engaged} == {"frozen"}
+    assert all(state == "frozen" for t, state in surge if t < 1800.0)
+    moving = [t for t, state in surge if state == "adapting"]
+    assert moving and 1800.0 <= moving[0] < 1830.0 and moving[-1] < 2300.0
+    assert all(state == "adapting" for t, state in surge if moving[0] <= t <= moving[-1])  # one unbroken stretch
+    assert surge[-1][1] == "frozen"
+    ratios = [a["ratio"]["surge"] for _, a in engaged]
+    assert ratios[0] == 1.0 and ratios[-1] != 1.0 and 0.3 <= ratios[-1] <= 5.0

@@ -120,6 +120,49 @@ def test_control_payload_computes_shortfall_and_nulls_mrac() -> None:
     assert with_mrac["reference"]["surge_mps"] == 0.2
 
 
+def test_control_mrac_carries_nominal_ratio_and_state_per_dof() -> None:
+    """The MRAC's masses against nominal and what each does (``mrac.nominal``, ``ratio``, ``state``): built,
+    parsed back, absent from an older daemon's payload (still valid), and checked."""
+    payload = sc.control_payload(t_s=1.0, seq=2, controller="mrac", tau_b=[1.0, 2.0, 3.0],
+                                 mrac_mass=[7.0e6, 7.0e6, np.nan], mrac_damping=[1e5, 2e5, 3e8],
+                                 mrac_nominal=[6.25e6, 7.0e6, 4.0e9], mrac_state=("adapting", "frozen", "suspended"))
+    mrac = sc.parse_message("control", payload)["mrac"]
+    assert mrac["nominal"] == {"surge_kg": 6.25e6, "sway_kg": 7.0e6, "yaw_kgm2": 4.0e9}
+    assert mrac["ratio"] == {"surge": 1.12, "sway": 1.0, "yaw": None}  # (no estimate: no ratio)
+    assert mrac["state"] == {"surge": "adapting", "sway": "frozen", "yaw": "suspended"}
+    older = json.loads(payload)
+    for key in ("nominal", "ratio", "state"):
+        del older["mrac"][key]
+    parsed = sc.parse_message("control", json.dumps(older).encode())
+    assert parsed["mrac"]["state"] is None and parsed["mrac"]["mass"]["surge_kg"] == 7.0e6
+    for field, dof, wrong, reason in (("state", "sway", "learning", "bad_value"), ("state", "yaw", None, "wrong_type"),
+                                      ("ratio", "surge", -1.0, "out_of_range"), ("ratio", "sway", "1.1", "wrong_type"),
+                                      ("nominal", "surge_kg", -5.0, "out_of_range")):
+        bad = json.loads(payload)
+        bad["mrac"][field][dof] = wrong
+        assert _reason(sc.parse_message("control", json.dumps(bad).encode())) == reason, (field, wrong)
+    bad = json.loads(payload)
+    del bad["mrac"]["state"]["yaw"]
+    assert _reason(sc.parse_message("control", json.dumps(bad).encode())) == "missing_field"
+    bad = json.loads(payload)
+    bad["mrac"]["state"]["heave"] = "off"
+    assert _reason(sc.parse_message("control", json.dumps(bad).encode())) == "unknown_field"
+
+
+def test_status_adaptation_summary_is_optional_and_checked() -> None:
+    payload = sc.status_payload(t_s=5.0, seq=3, mode="auto_position",
+                                adaptation=sc.AdaptationSummary(("adapting", "off", "frozen"), (1.12, 1.0, math.inf)))
+    summary = sc.parse_message("status", payload)["adaptation"]
+    assert summary == {"state": {"surge": "adapting", "sway": "off", "yaw": "frozen"},
+                       "ratio": {"surge": 1.12, "sway": 1.0, "yaw": None}}
+    assert sc.parse_message("status", sc.status_payload(t_s=5.0, seq=3, mode="standby"))["adaptation"] is None
+    for wrong, reason in (({"surge": "adapting", "sway": "off", "yaw": "melting"}, "bad_value"),
+                          ("adapting", "wrong_type")):
+        bad = json.loads(payload)
+        bad["adaptation"]["state"] = wrong
+        assert _reason(sc.parse_message("status", json.dumps(bad).encode())) == reason
+
+
 def test_status_round_trip() -> None:
     payload = sc.status_payload(
         t_s=5.0, seq=3, mode="auto_position",

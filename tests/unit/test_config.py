@@ -284,3 +284,62 @@ def test_transports_built_by_the_caller_take_the_place_of_the_files_list() -> No
         parse_config(twice, transports=given)
     with pytest.raises(ValueError, match="unknown protocol"):
         in_process_transport("x", "nmea0184")
+
+
+def _without_control(example: str) -> dict[str, object]:
+    mapping = yaml.safe_load((ROOT / "deploy" / "config" / example).read_text())
+    mapping.pop("control", None)
+    return mapping
+
+
+@pytest.mark.parametrize(("example", "kind", "options"), [
+    ("shuttle_tanker.yaml", "mrac", {"adapt": True}),  # seed 003: the loading tanker
+    ("supply.yaml", "pid", {"integral_action": "bias_feedforward"}),
+    ("cybership2.yaml", "pid", {"integral_action": "integrator"}),
+    ("blue_lady.yaml", "pid", {"integral_action": "integrator"}),
+])
+def test_without_control_kind_each_vessel_gets_the_controller_measured_to_hold_her(
+        example: str, kind: str, options: dict[str, object]) -> None:
+    """The default is what each example configures (their measurements in docs/configuration.md), and the
+    configuration says it is a default and why."""
+    default = parse_config(_without_control(example)).control
+    configured = load_config(ROOT / "deploy" / "config" / example).control
+    assert default.kind == configured.kind == kind and type(default.kind) is str
+    assert repr(default.config) == repr(configured.config)  # the same controller as the example's (arrays: repr)
+    assert all(getattr(default.config, key) == value for key, value in options.items())
+    assert not default.configured and configured.configured
+    assert default.default is not None and default.default.reason
+    assert default.default == configured.default  # the default is known either way
+
+
+def test_the_default_controller_follows_the_estimator_and_the_base_vessel() -> None:
+    mariner = _without_control("mariner.yaml")  # estimator heading_kf: the autopilot is the one it pairs with
+    assert parse_config(mariner).control.kind == "autopilot"
+    mariner["estimator"] = {"kind": "mmae"}  # a DP estimator on a course-keeping ship: a DP controller
+    assert parse_config(mariner).control.kind == "pid"
+    based = _without_control("supply.yaml")
+    based["vessel"] = {"base": "supply", "name": "osv_sister"}
+    control = parse_config(based).control
+    assert control.kind == "pid" and control.config.integral_action == "bias_feedforward"
+    assert control.default is not None and control.default.reason.startswith("based on supply: ")
+    own = copy.deepcopy(BASE)  # keys given without a kind apply to the vessel's default kind
+    own["control"] = {"integral_action": "bias_feedforward"}
+    assert parse_config(own).control.config.integral_action == "bias_feedforward"
+
+
+def test_check_config_says_which_controller_runs_whether_configured_and_why(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "supply.yaml"
+    path.write_text(yaml.safe_dump(_without_control("supply.yaml")))
+    assert main(["check-config", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "control pid (integral_action bias_feedforward): the default for vessel supply (no control.kind given)" \
+        in out and "the MRAC lost her heading" in out
+    tanker = tmp_path / "tanker.yaml"
+    tanker.write_text(yaml.safe_dump(_without_control("shuttle_tanker.yaml")))
+    assert main(["check-config", str(tanker)]) == 0
+    assert "control mrac: the default for vessel shuttle_tanker (no control.kind given) — a shuttle tanker, whose " \
+        "mass grows 2.66× as she loads (seed 003)" in capsys.readouterr().out
+    assert main(["check-config", str(ROOT / "deploy" / "config" / "shuttle_tanker.yaml")]) == 0
+    assert "control mrac: configured (control.kind; the default for vessel shuttle_tanker is mrac)" \
+        in capsys.readouterr().out

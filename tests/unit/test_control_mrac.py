@@ -373,3 +373,62 @@ def test_guided_gains_come_from_the_guidance_move_and_the_key_is_checked() -> No
     tuned, m_true, _ = _ideal_surge_adaptation(guided, ReferenceModel(default_reference_config(SHUTTLE_TANKER)),
                                                hours=1.5)
     assert tuned.mass_hat[0] == pytest.approx(m_true, rel=0.05)  # learns as fast as the cascade's tuning
+
+
+def _move(controller: MracController, guidance: ReferenceModel, target: np.ndarray, seconds: float,
+          dt: float = 0.1) -> list[tuple[str, str, str]]:
+    """Step a vessel at rest at the origin behind the guidance towards ``target``; the states after each step."""
+    eta = np.zeros(3)
+    states = []
+    for _ in range(round(seconds / dt)):
+        controller.step(dt, eta, np.zeros(3), None, guidance.step(dt, target))
+        states.append(controller.adaptation_states())
+    return states
+
+
+def test_adaptation_states_read_adapting_while_excited_frozen_after_the_hold_suspended_and_off() -> None:
+    """What the operator reads per DOF (status and monitor): the gate open within the hold → adapting, held for
+    want of excitation → frozen once the hold has passed, stopped by the supervision → suspended, adapt false →
+    off."""
+    config = dataclasses.replace(default_mrac_config(SHUTTLE_TANKER), entry_rest_s=0.0)
+    controller = MracController(config)
+    guidance = ReferenceModel(default_reference_config(SHUTTLE_TANKER))
+    guidance.reset(np.zeros(3))
+    hold = controller.adapting_hold_s
+    assert hold == (10.0, 10.0, 10.0)  # 0.05 of the tanker's 200 s reference-model period
+    at_rest = _move(controller, guidance, np.zeros(3), 5.0)
+    assert at_rest[-1] == ("frozen", "frozen", "frozen")  # adaptation on, nothing to learn from
+    moving = _move(controller, guidance, np.array([20.0, 0.0, 0.0]), 300.0)
+    assert ("adapting", "frozen", "frozen") in moving  # surge excited; sway and yaw never
+    first = moving.index(("adapting", "frozen", "frozen"))
+    # one move reads adapting from its start to its end: the gate's closure while ÿ_M crosses zero is bridged
+    assert all(s[0] == "adapting" for s in moving[first:first + 1500])
+    settled = _move(controller, guidance, np.array([20.0, 0.0, 0.0]), 600.0)
+    assert settled[-1] == ("frozen", "frozen", "frozen")
+    # the hold measured from the last step the gate was open
+    last_open = max(i for i, s in enumerate(moving + settled) if s[0] == "adapting")
+    assert any(s[0] == "frozen" for s in (moving + settled)[last_open + 1:last_open + round(hold[0] / 0.1) + 2])
+    controller.suspend_adaptation()
+    assert controller.adaptation_states() == ("suspended", "suspended", "suspended")
+    assert _move(controller, guidance, np.zeros(3), 200.0)[-1] == ("suspended",) * 3  # until a restart
+    fixed = MracController(config, adapt=False)
+    assert _move(fixed, guidance, np.array([40.0, 0.0, 0.0]), 200.0)[-1] == ("off", "off", "off")
+    assert MracController(dataclasses.replace(config, adapt=False)).adaptation_states() == ("off", "off", "off")
+
+
+def test_a_new_entry_reads_frozen_until_excited_again() -> None:
+    """reset (an entry into DP) forgets the last excitation: nothing has been learnt in this entry yet."""
+    config = dataclasses.replace(default_mrac_config(SHUTTLE_TANKER), entry_rest_s=0.0)
+    controller = MracController(config)
+    guidance = ReferenceModel(default_reference_config(SHUTTLE_TANKER))
+    guidance.reset(np.zeros(3))
+    assert _move(controller, guidance, np.array([20.0, 0.0, 0.0]), 60.0)[-1][0] == "adapting"
+    controller.reset()
+    assert controller.adaptation_states() == ("frozen", "frozen", "frozen")
+
+
+def test_the_adaptation_states_are_the_wire_vocabulary() -> None:
+    from dpcontrol.control.base import ADAPTATION_STATES  # noqa: PLC0415
+    from interfaces.zenoh.schemas import ADAPTATION_STATES as WIRE  # noqa: PLC0415
+
+    assert ADAPTATION_STATES == WIRE

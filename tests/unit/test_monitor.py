@@ -12,6 +12,7 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from rich.console import Console
+from rich.text import Text
 
 from dpcontrol.monitor import (
     MONITOR_TOPICS,
@@ -125,6 +126,31 @@ def test_forces_take_the_unit_of_their_magnitude_per_column() -> None:
                                  thrust_n=[0.9, -0.35], azimuth_rad=[math.pi / 2, 0.0])
     text = _text(render(_with(_state(), "command", command)))
     assert "cmd [N]" in text and "0.90" in text and "-0.35" in text
+
+
+def test_mrac_masses_read_against_nominal_with_what_each_does_coloured() -> None:
+    """``MRAC mass / nominal``: per DOF the ratio and the state, coloured as the other states (learning green,
+    held cyan, suspended by the supervision red, configured off dim); no row from a daemon that does not send
+    them."""
+    control = sc.control_payload(t_s=101.0, seq=1, controller="mrac", tau_b=[1e3, 2e3, 3e3],
+                                 mrac_mass=[7.0e6, 6.86e6, 4.0e9], mrac_damping=[1e5, 2e5, 3e8],
+                                 mrac_nominal=[6.25e6, 7.0e6, 4.0e9], mrac_state=("adapting", "frozen", "suspended"))
+    panel = render(_with(_state(), "control", control))
+    text = _text(panel)
+    row = next(line for line in text.splitlines() if "MRAC mass /" in line)  # (the label wraps: "nominal" below)
+    assert "1.12× adapting" in row and "0.98× frozen" in row and "1.00× suspended" in row
+    console = Console(record=True, width=140, file=io.StringIO(), color_system="truecolor", force_terminal=True)
+    console.print(panel)
+    styled = console.export_text(styles=True)
+    green, cyan, red = (Console(color_system="truecolor", force_terminal=True, file=io.StringIO()) for _ in range(3))
+    for console_, word, style in ((green, "1.12× adapting", "green"), (cyan, "0.98× frozen", "cyan"),
+                                  (red, "1.00× suspended", "bold red")):
+        console_.print(Text(word, style=style), end="")
+        assert console_.file.getvalue() in styled, word  # the cell drawn in its state's style
+    off = sc.control_payload(t_s=101.0, seq=1, controller="mrac", tau_b=[1e3, 2e3, 3e3], mrac_mass=[6.25e6] * 3,
+                             mrac_damping=[1e5] * 3, mrac_nominal=[6.25e6] * 3, mrac_state=("off",) * 3)
+    assert "1.00× off" in _text(render(_with(_state(), "control", off)))
+    assert "MRAC mass /" not in _text(render(_state()))  # an older daemon: masses only
 
 
 def test_alarms_show_age_and_utc_time_full_codes_and_counts() -> None:
