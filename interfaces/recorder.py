@@ -299,8 +299,9 @@ def _open_output(path: Path) -> IO[bytes]:
     return open(path, "xb")  # the writer thread owns and closes it
 
 
-def _fsync_directory(directory: Path) -> None:
-    """Make a created/deleted directory entry durable (best effort: not every FS supports it)."""
+def fsync_directory(directory: Path) -> None:
+    """Make a created, renamed or deleted directory entry durable (best effort: not every file system supports
+    fsync on a directory). Used by the recorder and the daemon's state store."""
     try:
         fd = os.open(directory, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
     except OSError:
@@ -1001,7 +1002,7 @@ class Recorder:
                 path.unlink()  # a file with nothing recorded in it
             raise
         if self._fsync:
-            _fsync_directory(directory)
+            fsync_directory(directory)
         self._file = current
         self._file_name = name
         self._file_bytes = stream.tell()

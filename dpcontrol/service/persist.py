@@ -44,7 +44,7 @@ from typing import TYPE_CHECKING, Any
 
 import orjson
 
-from interfaces.recorder import json_default
+from interfaces.recorder import fsync_directory, json_default
 
 if TYPE_CHECKING:
     from dpcontrol.runtime.config import StateSettings
@@ -100,20 +100,6 @@ class LoadResult:
     @property
     def ok(self) -> bool:
         return self.status is LoadStatus.OK
-
-
-def _fsync_directory(directory: Path) -> None:
-    """Make the rename durable (best effort: some file systems refuse fsync on a directory)."""
-    try:
-        fd = os.open(directory, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
 
 
 class StateStore:
@@ -242,7 +228,7 @@ class StateStore:
                 raise StateStoreError(f"cannot write state file {self._path}: {error.strerror or error}") from error
             raise
         if self._fsync:
-            _fsync_directory(directory)
+            fsync_directory(directory)
 
     def _remove_stale_temporaries(self) -> None:
         """Remove temporary files a killed save left behind (only this store's own name pattern)."""
