@@ -29,8 +29,8 @@ from typing import Any
 
 import numpy as np
 
+from dpcontrol.estimation.factory import make_wave_filter
 from dpcontrol.estimation.filter_config import WaveFilterConfig
-from dpcontrol.estimation.wave_filter import make_wave_filter
 from dpcontrol.models.vessels import CYBERSHIP2
 
 DT_S = 0.1

@@ -9,9 +9,11 @@
 * :mod:`~dpcontrol.estimation.rpem` — RPEM adaptive-frequency filter (seed 003);
 * :mod:`~dpcontrol.estimation.kalman_bucy` — Kalman–Bucy filter, Blue Lady (seed 004);
 * :mod:`~dpcontrol.estimation.heading` — course-keeping heading filter (seed 002 eqs. (69)–(81));
-* :mod:`~dpcontrol.estimation.filter_config` — :class:`WaveFilterConfig` and the default tuning rule.
+* :mod:`~dpcontrol.estimation.filter_config` — :class:`WaveFilterConfig` and the default tuning rule;
+* :mod:`~dpcontrol.estimation.factory` — :func:`make_wave_filter`, the filter of a configuration's kind.
 """
 
+from dpcontrol.estimation.factory import make_wave_filter
 from dpcontrol.estimation.filter_config import WaveFilterConfig
 from dpcontrol.estimation.rpem import RpemWaveFilter
 from dpcontrol.estimation.wave_filter import (
@@ -19,7 +21,6 @@ from dpcontrol.estimation.wave_filter import (
     TimeVaryingWaveFilter,
     WaveFilter,
     WaveFilterOutput,
-    make_wave_filter,
 )
 
 __all__ = [

@@ -34,20 +34,20 @@ from dpcontrol.estimation.discretize import discretize, oscillator_discretizatio
 from dpcontrol.estimation.filter_config import WaveFilterConfig
 from dpcontrol.estimation.kalman import KalmanFilter, is_covariance, solve_prior_covariance
 from dpcontrol.estimation.wave_filter import (
-    _HEADING,
-    _MASKS,
-    _MEASURED,
-    _NONE,
+    PATTERN_HEADING,
+    PATTERN_MASKS,
+    PATTERN_MEASURED,
+    PATTERN_NONE,
+    FrameFilter,
     WaveFilterOutput,
-    _finite_array,
-    _FrameFilter,
     build_design_model,
+    finite_array,
 )
 
 _MIN_VARIANCE = 1e-300
 
 
-class RpemWaveFilter(_FrameFilter):
+class RpemWaveFilter(FrameFilter):
     """Adaptive wave filter with RPEM peak-frequency tracking (``kind="rpem"``), seed 003.
 
     Exposes ``omega_hat_rad_s`` (the current ω̂0) besides the common :class:`WaveFilterOutput`.
@@ -119,7 +119,7 @@ class RpemWaveFilter(_FrameFilter):
         self.filter.x = x
         self.filter.P = self._P0.copy()
         self._initialized = True
-        self._write(np.zeros(3), _NONE)
+        self._write(np.zeros(3), PATTERN_NONE)
 
     def predicted_measurement(self) -> tuple[np.ndarray, np.ndarray]:
         if not self._initialized:
@@ -135,12 +135,12 @@ class RpemWaveFilter(_FrameFilter):
         code = self._read_inputs(y_n, tau_b, measured)
         kf = self.filter
         H = kf.H
-        psi_new = ssa(self._y[2]) if code & _HEADING else ssa(float(H[2] @ kf.x))
+        psi_new = ssa(self._y[2]) if code & PATTERN_HEADING else ssa(float(H[2] @ kf.x))
         self.set_frame_heading(psi_new)
         eps = np.zeros(3)
-        if code != _NONE:
+        if code != PATTERN_NONE:
             self._to_vessel_parallel(code)
-            mask = _MASKS[code]
+            mask = PATTERN_MASKS[code]
             rows = np.flatnonzero(mask)
             eps = self._yp - H @ kf.x
             eps[2] = ssa(float(eps[2]))
@@ -191,7 +191,7 @@ class RpemWaveFilter(_FrameFilter):
         self._write_pose(self.filter.x)
         self.output.covariance_diag[:] = np.diag(self.filter.P)
         self._write_innovation(eps_p)
-        self.output.measured = _MEASURED[code]
+        self.output.measured = PATTERN_MEASURED[code]
         self.output.omega_hat_rad_s = self.omega_hat
 
     # -- persistence --------------------------------------------------------------------------
@@ -205,12 +205,12 @@ class RpemWaveFilter(_FrameFilter):
     def load_state_dict(self, state: dict[str, Any]) -> None:
         self._check_state(state)
         n = self.index.n
-        x = _finite_array(state.get("x"), (n,), "x")
-        P = _finite_array(state.get("P"), (n, n), "P")
-        dx = _finite_array(state.get("dx_domega"), (n,), "dx_domega")
-        var = _finite_array(state.get("innovation_variance"), (3,), "innovation_variance")
-        omega = float(_finite_array(state.get("omega_hat_rad_s"), (), "omega_hat_rad_s"))
-        p_omega = float(_finite_array(state.get("p_omega"), (), "p_omega"))
+        x = finite_array(state.get("x"), (n,), "x")
+        P = finite_array(state.get("P"), (n, n), "P")
+        dx = finite_array(state.get("dx_domega"), (n,), "dx_domega")
+        var = finite_array(state.get("innovation_variance"), (3,), "innovation_variance")
+        omega = float(finite_array(state.get("omega_hat_rad_s"), (), "omega_hat_rad_s"))
+        p_omega = float(finite_array(state.get("p_omega"), (), "p_omega"))
         steps = state.get("steps", 0)
         if not self._omega_min <= omega <= self._omega_max:
             raise ValueError("wave filter state: omega_hat_rad_s outside the RPEM range")
@@ -227,4 +227,4 @@ class RpemWaveFilter(_FrameFilter):
         self.steps = steps
         self._psi_frame = float(state["psi_frame_rad"])
         self._initialized = bool(state.get("initialized", True))
-        self._write(np.zeros(3), _NONE)
+        self._write(np.zeros(3), PATTERN_NONE)

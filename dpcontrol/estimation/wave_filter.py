@@ -75,11 +75,11 @@ from dpcontrol.estimation.weighting import BandLikelihood, bayes_step, dwsg_step
 STATE_DICT_VERSION = 1
 _FULL = pattern_code((True, True, True))
 _POSITION = pattern_code((True, True, False))
-_HEADING = pattern_code((False, False, True))
-_NONE = pattern_code((False, False, False))
-_USED_PATTERNS = (_FULL, _POSITION, _HEADING, _NONE)
-_MASKS = {code: np.array([code & 1, (code >> 1) & 1, (code >> 2) & 1], dtype=float) for code in _USED_PATTERNS}
-_MEASURED = {code: (bool(code & 1), bool(code & 2), bool(code & 4)) for code in _USED_PATTERNS}
+PATTERN_HEADING = pattern_code((False, False, True))
+PATTERN_NONE = pattern_code((False, False, False))
+_USED_PATTERNS = (_FULL, _POSITION, PATTERN_HEADING, PATTERN_NONE)
+PATTERN_MASKS = {code: np.array([code & 1, (code >> 1) & 1, (code >> 2) & 1], dtype=float) for code in _USED_PATTERNS}
+PATTERN_MEASURED = {code: (bool(code & 1), bool(code & 2), bool(code & 4)) for code in _USED_PATTERNS}
 
 
 @dataclass(eq=False)
@@ -188,7 +188,7 @@ def _as_floats(value: Any, length: int, what: str) -> list[float]:
         raise ValueError(f"{what} must be a sequence of {length} numbers, got {value!r}") from None
 
 
-class _FrameFilter:
+class FrameFilter:
     """Shared input checking, vessel-parallel frame handling and output for every kind."""
 
     kind: str
@@ -241,7 +241,7 @@ class _FrameFilter:
         tau[1] = t1
         tau[2] = t2
         if y_n is None:
-            return _NONE
+            return PATTERN_NONE
         use_pos = bool(measured[0]) and bool(measured[1])
         use_psi = bool(measured[2])
         y = self._y
@@ -263,8 +263,8 @@ class _FrameFilter:
                     self.rejected_samples += 1
         except (TypeError, ValueError, IndexError):
             self.rejected_samples += 1
-            return _NONE
-        return (_POSITION if use_pos else 0) | (_HEADING if use_psi else 0)
+            return PATTERN_NONE
+        return (_POSITION if use_pos else 0) | (PATTERN_HEADING if use_psi else 0)
 
     def _check_reset(self, y_n: np.ndarray) -> list[float]:
         y = _as_floats(y_n, 3, "y_n")
@@ -299,7 +299,7 @@ class _FrameFilter:
         else:
             yp[0] = 0.0
             yp[1] = 0.0
-        yp[2] = y[2] if code & _HEADING else 0.0
+        yp[2] = y[2] if code & PATTERN_HEADING else 0.0
 
     def _write_pose(self, x_hat: np.ndarray) -> None:
         """LF pose, velocity, bias and WF motion from the (blended) state, to NED."""
@@ -341,7 +341,7 @@ class _FrameFilter:
             raise ValueError("wave filter state: psi_frame_rad must be finite")
 
 
-def _finite_array(value: Any, shape: tuple[int, ...], what: str) -> np.ndarray:
+def finite_array(value: Any, shape: tuple[int, ...], what: str) -> np.ndarray:
     try:
         array = np.array(value, dtype=float)
     except (TypeError, ValueError):
@@ -351,7 +351,7 @@ def _finite_array(value: Any, shape: tuple[int, ...], what: str) -> np.ndarray:
     return array
 
 
-class BankWaveFilter(_FrameFilter):
+class BankWaveFilter(FrameFilter):
     """A bank of N steady-state Kalman filters run as one batched computation.
 
     ``kind="mmae"``: N models at the grid ``omegas_rad_s`` blended by the weights of
@@ -393,7 +393,7 @@ class BankWaveFilter(_FrameFilter):
         # rotation-invariant diag(s_pos, s_pos, s_psi)) or each filter's own S_i (seed 000).
         s_mean = np.mean([np.diag(g[_FULL].S) for g in gains], axis=0)
         s_common = np.array([0.5 * (s_mean[0] + s_mean[1])] * 2 + [s_mean[2]])
-        self._half_w_common = np.stack([-0.5 * _MASKS[code] / s_common for code in codes])  # (4, 3)
+        self._half_w_common = np.stack([-0.5 * PATTERN_MASKS[code] / s_common for code in codes])  # (4, 3)
         self._half_S_inv_own = np.stack([np.stack([-0.5 * g[code].S_inv for g in gains]) for code in codes])
         self._log_beta_own = np.stack([np.array([-0.5 * g[code].log_det_S for g in gains]) for code in codes])
         self.common_scale = s_common
@@ -462,7 +462,7 @@ class BankWaveFilter(_FrameFilter):
         if self.band_likelihood is not None:
             self.band_likelihood.restart()   # the pose jump is no sea-state evidence
         self._initialized = True
-        self._blend_and_write(_NONE)
+        self._blend_and_write(PATTERN_NONE)
         self.output.innovation[:] = 0.0
         self.output.measured = (False, False, False)
 
@@ -491,7 +491,7 @@ class BankWaveFilter(_FrameFilter):
         self._psi_frame = bank_correct(code, self._y, self._psi_frame, self._heading, self._wf0_k, self._rot_start,
                                        self._rot_blocks, 1 if self._band_weights else 0, self.x, self._H,
                                        self._K_slots[slot], self.p, self._x_post, self._eps, self._residual)
-        if code != _NONE and self.kind == "mmae":
+        if code != PATTERN_NONE and self.kind == "mmae":
             self._update_weights(slot, code)
         self._write_outputs(code)
         # 3. prediction (seed 002 eq. (52)) with the delivered force: x̄ = Φ x̂ + Γ τ
@@ -531,7 +531,7 @@ class BankWaveFilter(_FrameFilter):
             # evidence time: a gated (invalid) period neither adds evidence nor forgets the old.
             # The residual y − η̂_LF (blended prior) = Σ p_i (ε_i + ξ2_i), the WF motion + noise for the WF
             # share, came from bank_correct.
-            if not band.update(eps, (code & _POSITION) == _POSITION, bool(code & _HEADING), self._residual):
+            if not band.update(eps, (code & _POSITION) == _POSITION, bool(code & PATTERN_HEADING), self._residual):
                 return
             log_l = band.log_l
             forgetting = forgetting ** band.gate_max
@@ -564,7 +564,7 @@ class BankWaveFilter(_FrameFilter):
                                  self._psi_frame, self._eta0, self._wf0_k, self._lf_slice.start, self._omegas_k,
                                  self._x_hat, out.eta_hat_n, self._lf_tail, out.eta_wf_hat_n, out.covariance_diag,
                                  out.innovation)
-        out.measured = _MEASURED[code]
+        out.measured = PATTERN_MEASURED[code]
         if self.kind == "mmae":
             out.omega_hat_rad_s = omega_hat
 
@@ -579,16 +579,16 @@ class BankWaveFilter(_FrameFilter):
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         self._check_state(state)
-        omegas = _finite_array(state.get("omegas_rad_s"), self.omegas.shape, "omegas_rad_s")
+        omegas = finite_array(state.get("omegas_rad_s"), self.omegas.shape, "omegas_rad_s")
         if not np.allclose(omegas, self.omegas, rtol=1e-12, atol=0.0):
             raise ValueError("wave filter state: omegas_rad_s differ from the configured bank")
-        x = _finite_array(state.get("x"), self.x.shape, "x")
-        p = _finite_array(state.get("weights"), self.p.shape, "weights")
+        x = finite_array(state.get("x"), self.x.shape, "x")
+        p = finite_array(state.get("weights"), self.p.shape, "weights")
         if np.any(p < 0.0) or not math.isclose(float(p.sum()), 1.0, rel_tol=1e-6):
             raise ValueError("wave filter state: weights must be >= 0 and sum to 1")
         log_w = None
         if state.get("log_weights") is not None:
-            log_w = _finite_array(state.get("log_weights"), self.p.shape, "log_weights")
+            log_w = finite_array(state.get("log_weights"), self.p.shape, "log_weights")
             implied = np.exp(log_w - log_w.max())
             if not np.allclose(implied / implied.sum(), p / p.sum(), rtol=1e-6, atol=1e-12):
                 raise ValueError("wave filter state: log_weights do not match weights")
@@ -608,10 +608,10 @@ class BankWaveFilter(_FrameFilter):
         self._log_w[:] = log_w
         self._psi_frame = float(state["psi_frame_rad"])
         self._initialized = bool(state.get("initialized", True))
-        self._blend_and_write(_NONE)
+        self._blend_and_write(PATTERN_NONE)
 
 
-class TimeVaryingWaveFilter(_FrameFilter):
+class TimeVaryingWaveFilter(FrameFilter):
     """One time-varying Joseph-form Kalman filter at a fixed ω0 (``kind="kf"``, ``time_varying=True``).
 
     Seed 002 eqs. (51)–(54) with the covariance propagated every step; the covariance is rotated with
@@ -649,7 +649,7 @@ class TimeVaryingWaveFilter(_FrameFilter):
         self.filter.x = x
         self.filter.P = self._P0.copy()
         self._initialized = True
-        self._write(np.zeros(3), _NONE)
+        self._write(np.zeros(3), PATTERN_NONE)
 
     def predicted_measurement(self) -> tuple[np.ndarray, np.ndarray]:
         if not self._initialized:
@@ -664,15 +664,15 @@ class TimeVaryingWaveFilter(_FrameFilter):
              measured: tuple[bool, bool, bool] = (True, True, True)) -> WaveFilterOutput:
         code = self._read_inputs(y_n, tau_b, measured)
         kf = self.filter
-        psi_new = ssa(self._y[2]) if code & _HEADING else ssa(float(kf.H[2] @ kf.x))
+        psi_new = ssa(self._y[2]) if code & PATTERN_HEADING else ssa(float(kf.H[2] @ kf.x))
         self.set_frame_heading(psi_new)
         eps_full = np.zeros(3)
-        if code != _NONE:
+        if code != PATTERN_NONE:
             self._to_vessel_parallel(code)
-            rows = np.flatnonzero(_MASKS[code])
+            rows = np.flatnonzero(PATTERN_MASKS[code])
             eps_full = self._yp - kf.H @ kf.x
             eps_full[2] = ssa(float(eps_full[2]))
-            eps_full *= _MASKS[code]
+            eps_full *= PATTERN_MASKS[code]
             kf.correct(eps_full[rows], rows)
         turns = round(float(kf.x[self._heading]) / (2.0 * math.pi))
         if turns:
@@ -694,7 +694,7 @@ class TimeVaryingWaveFilter(_FrameFilter):
         self._write_pose(self.filter.x)
         self.output.covariance_diag[:] = np.diag(self.filter.P)
         self._write_innovation(eps_p)
-        self.output.measured = _MEASURED[code]
+        self.output.measured = PATTERN_MEASURED[code]
 
     def state_dict(self) -> dict[str, Any]:
         state = self._frame_state()
@@ -704,27 +704,12 @@ class TimeVaryingWaveFilter(_FrameFilter):
     def load_state_dict(self, state: dict[str, Any]) -> None:
         self._check_state(state)
         n = self.index.n
-        x = _finite_array(state.get("x"), (n,), "x")
-        P = _finite_array(state.get("P"), (n, n), "P")
+        x = finite_array(state.get("x"), (n,), "x")
+        P = finite_array(state.get("P"), (n, n), "P")
         if not is_covariance(P):
             raise ValueError("wave filter state: P must be symmetric positive semidefinite")
         self.filter.x = x
         self.filter.P = 0.5 * (P + P.T)
         self._psi_frame = float(state["psi_frame_rad"])
         self._initialized = bool(state.get("initialized", True))
-        self._write(np.zeros(3), _NONE)
-
-
-def make_wave_filter(config: WaveFilterConfig) -> WaveFilter:
-    """The wave filter for ``config.kind`` (mmae, kf, rpem, pem, raw)."""
-    if config.kind == "pem":
-        from dpcontrol.estimation.pem import PemWaveFilter  # noqa: PLC0415 — pem imports this module
-
-        return PemWaveFilter(config)  # type: ignore[return-value]
-    if config.kind == "rpem":
-        from dpcontrol.estimation.rpem import RpemWaveFilter  # noqa: PLC0415 — rpem imports this module
-
-        return RpemWaveFilter(config)
-    if config.kind == "kf" and config.time_varying:
-        return TimeVaryingWaveFilter(config)
-    return BankWaveFilter(config)
+        self._write(np.zeros(3), PATTERN_NONE)

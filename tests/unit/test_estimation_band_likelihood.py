@@ -15,8 +15,8 @@ from scipy.signal import sosfilt
 from test_estimation_support import jonswap_motion, measure, run_filter, simulate_vessel
 
 from dpbase.schema import ConfigError
+from dpcontrol.estimation.factory import make_wave_filter
 from dpcontrol.estimation.filter_config import WaveFilterConfig
-from dpcontrol.estimation.wave_filter import make_wave_filter
 from dpcontrol.estimation.weighting import BandLikelihood, _cascade_state_space, _Prefilter
 from dpcontrol.models.vessels import CYBERSHIP2
 

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from test_estimation_support import jonswap_motion, measure, run_filter, simulate_design_model, simulate_vessel
 
+from dpcontrol.estimation.factory import make_wave_filter
 from dpcontrol.estimation.filter_config import WaveFilterConfig
 from dpcontrol.estimation.rpem import RpemWaveFilter
-from dpcontrol.estimation.wave_filter import make_wave_filter
 from dpcontrol.models.vessels import CYBERSHIP2, SHUTTLE_TANKER
 
 Q_SEED000 = np.array([0.09, 0.09, 1e-4, 1e-3, 1e-3, 1e-4, 1e-3, 1e-3, 1e-4])

@@ -134,3 +134,60 @@ def test_the_step_and_the_hub_load_no_transport_wire_or_recorder(module: str) ->
     result = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120, cwd=ROOT,
                             check=True)
     assert result.stdout.split() == []
+
+
+def _module_graph() -> dict[str, set[str]]:
+    """Project module → the project modules it imports (at module level or inside functions: a lazy import
+    still ties the two); an import of a module's own package (its ``__init__``) is not counted."""
+    modules: dict[str, Path] = {}
+    for package in ("dpbase", "dpcontrol", "interfaces", "sim_plant"):
+        for path in (ROOT / package).rglob("*.py"):
+            parts = list(path.relative_to(ROOT).with_suffix("").parts)
+            if parts[-1] == "__init__":
+                parts = parts[:-1]
+            modules[".".join(parts)] = path
+
+    def resolve(name: str) -> str | None:
+        while name and name not in modules:
+            name = name.rpartition(".")[0]
+        return name or None
+
+    graph: dict[str, set[str]] = {name: set() for name in modules}
+    for name, path in modules.items():
+        tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                targets = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                targets = [node.module] + [f"{node.module}.{alias.name}" for alias in node.names]
+            else:
+                continue
+            for target in targets:
+                found = resolve(target)
+                if found is not None and found != name and not name.startswith(found + "."):
+                    graph[name].add(found)
+    return graph
+
+
+def test_no_import_cycle_between_project_modules() -> None:
+    graph = _module_graph()
+    assert len(graph) > 100
+    cycles: list[list[str]] = []
+    done: set[str] = set()
+
+    def visit(node: str, path: list[str], on_path: set[str]) -> None:
+        for nxt in sorted(graph[node]):
+            if nxt in on_path:
+                cycles.append(path[path.index(nxt):] + [nxt])
+            elif nxt not in done:
+                path.append(nxt)
+                on_path.add(nxt)
+                visit(nxt, path, on_path)
+                on_path.discard(nxt)
+                path.pop()
+        done.add(node)
+
+    for start in sorted(graph):
+        if start not in done:
+            visit(start, [start], {start})
+    assert cycles == []
