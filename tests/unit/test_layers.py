@@ -178,7 +178,7 @@ def test_no_import_cycle_between_project_modules() -> None:
     def visit(node: str, path: list[str], on_path: set[str]) -> None:
         for nxt in sorted(graph[node]):
             if nxt in on_path:
-                cycles.append(path[path.index(nxt):] + [nxt])
+                cycles.append([*path[path.index(nxt):], nxt])
             elif nxt not in done:
                 path.append(nxt)
                 on_path.add(nxt)
