@@ -25,7 +25,7 @@ from dpcontrol.estimation.filter_config import DEFAULT_OMEGAS_RAD_S
 from dpcontrol.guidance import ReferenceModelConfig, reference_config_from_mapping
 from dpcontrol.models.vessels import BUILTIN_VESSELS, VesselData, vessel_from_config
 from dpcontrol.runtime.consequence import ConsequenceSettings
-from dpcontrol.runtime.deviation import DeviationSettings
+from dpcontrol.runtime.deviation import DeviationSettings, drift_off_horizon_s
 from dpcontrol.runtime.hub import HubConfig, SensorConfig, SensorKind
 from dpcontrol.runtime.thruster_monitor import ThrusterMonitorSettings
 from interfaces.nmea0183.codec import DEFAULT_MAX_SENTENCE_CHARS
@@ -556,7 +556,7 @@ def _parse(mapping: object, text: str, file: str | None, given: tuple[TransportC
     tm.finish()
 
     consequence = _parse_consequence(root.section("consequence"), vessel)
-    deviation = _parse_deviation(root.section("deviation"))
+    deviation = _parse_deviation(root.section("deviation"), vessel.length_m)
 
     zenoh = ZenohConfig.from_mapping(root.raw("zenoh", None), "zenoh")
     _refuse_unprotected(zenoh)
@@ -603,9 +603,10 @@ def _refuse_unprotected(zenoh: ZenohConfig) -> None:
                           show_got=False)
 
 
-def _parse_deviation(section: Section) -> DeviationSettings:
+def _parse_deviation(section: Section, length_m: float) -> DeviationSettings:
     """``deviation:``: warning and alarm limits of position [m] and heading [deg], each alarm limit above its
-    warning limit, and the persistence [s]."""
+    warning limit, the persistence [s], and the drift-off horizon [s] (default: the vessel's, from its length
+    ``length_m`` [m], :func:`dpcontrol.runtime.deviation.drift_off_horizon_s`)."""
     limits = {key: section.number(key, default, minimum=0.0, exclusive_minimum=True)
               for key, default in (("position_warning_m", 3.0), ("position_alarm_m", 5.0),
                                    ("heading_warning_deg", 3.0), ("heading_alarm_deg", 5.0))}
@@ -616,12 +617,13 @@ def _parse_deviation(section: Section) -> DeviationSettings:
                               f"more than {quantity}_warning_{unit} ({warning:g} {unit})", alarm)
     if limits["heading_alarm_deg"] >= 180.0:
         raise ConfigError(join(section.path, "heading_alarm_deg"), "less than 180 deg", limits["heading_alarm_deg"])
+    horizon = section.optional_number("drift_off_horizon_s", minimum=0.0)
     settings = DeviationSettings(
         position_warning_m=limits["position_warning_m"], position_alarm_m=limits["position_alarm_m"],
         heading_warning_rad=math.radians(limits["heading_warning_deg"]),
         heading_alarm_rad=math.radians(limits["heading_alarm_deg"]),
         persist_s=section.number("persist_s", 1.0, minimum=0.0),
-        drift_off_horizon_s=section.number("drift_off_horizon_s", 30.0, minimum=0.0),
+        drift_off_horizon_s=horizon if horizon is not None else drift_off_horizon_s(length_m),
         drift_off_persist_s=section.number("drift_off_persist_s", 3.0, minimum=0.0),
     )
     section.finish()

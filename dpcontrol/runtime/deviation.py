@@ -44,6 +44,20 @@ from dpcontrol.runtime.alarms import AlarmRegistry, Severity
 CLEAR_FRACTION = 0.8
 DRIFT_WINDOW_S = 5.0  # the drift-off test's interval W [s]
 DRIFT_SAMPLE_S = 0.5  # the deviations it keeps are this far apart (≤ 2W/this of them: a short scan per step) [s]
+DRIFT_HORIZON_S = 30.0  # the drift-off horizon of a full-scale vessel [s] (docs/fault-handling.md)
+DRIFT_HORIZON_LENGTH_M = 76.2  # ... measured on the supply vessel; shorter vessels' horizons shrink by Froude [m]
+
+
+def drift_off_horizon_s(length_m: float) -> float:
+    """The default drift-off horizon H [s] of a vessel ``length_m`` [m] long: :data:`DRIFT_HORIZON_S` for a
+    full-scale vessel, shrunk by the Froude time scale √(L / L_ref) below :data:`DRIFT_HORIZON_LENGTH_M`.
+
+    The horizon extrapolates the deviation's present rate; a model-scale vessel does in seconds what a ship
+    does in a minute (its engagement transient, CyberShip II's 1.26 m, lasts ~6 s), so a 30 s horizon turned
+    those transients into drift-off alarms on the HIL bench. Longer vessels keep 30 s: it is the operator's
+    time to take over, and a longer horizon would make the alarm more sensitive than it was measured.
+    """
+    return DRIFT_HORIZON_S * min(1.0, math.sqrt(max(length_m, 0.0) / DRIFT_HORIZON_LENGTH_M))
 
 
 
@@ -61,7 +75,7 @@ class DeviationSettings:
     heading_warning_rad: float = math.radians(3.0)
     heading_alarm_rad: float = math.radians(5.0)
     persist_s: float = 1.0
-    drift_off_horizon_s: float = 30.0  # drift-off alarm: the alarm limit reached within this at the present trend
+    drift_off_horizon_s: float = DRIFT_HORIZON_S  # drift-off: the alarm limit reached within this at the trend
     drift_off_persist_s: float = 3.0  # ... growing at a growing rate for this long (0 horizon: no drift-off alarm)
 
 class _DriftOff:
