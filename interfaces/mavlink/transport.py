@@ -23,14 +23,12 @@ from collections.abc import Callable, Hashable, Mapping
 from dataclasses import dataclass
 from typing import Any, cast
 
-from dpbase.schema import ConfigError, Section, join
 from interfaces.mavlink.codec import (
     HeartbeatMonitor,
     LinkChange,
     MavlinkDecoder,
     MavlinkEncoder,
     mavlink_source_name,
-    parse_signing_key,
 )
 from interfaces.messages import LinkHeartbeat, LinkStatus, Measurement, Rejected, RejectedInput
 
@@ -81,57 +79,6 @@ def parse_udpin(url: str) -> Address:
     if port > 65535:
         raise ValueError(f"mavlink url {url!r}: port {port} beyond 65535")
     return match.group(1).strip("[]"), port
-
-
-@dataclass(frozen=True, slots=True)
-class MavlinkUdpConfig:
-    """Where a MAVLink reader listens and what it requires.
-
-    Attributes
-    ----------
-    host, port : str, int
-        UDP listen address (``udpin``); 14550 is the usual ground-station port.
-    signing_key : bytes or None
-        32-byte MAVLink 2 signing key; when set, only correctly signed packets are accepted.
-    heartbeat_timeout_s : float
-        Silence after which a peer is reported lost.
-    """
-
-    host: str = "127.0.0.1"
-    port: int = 14550
-    signing_key: bytes | None = None
-    heartbeat_timeout_s: float = 5.0
-
-    @classmethod
-    def from_config(cls, value: object, path: str = "mavlink") -> MavlinkUdpConfig:
-        """Validate ``{host, port, signing_key (64 hex digits, optional), heartbeat_timeout_s}``.
-
-        Raises
-        ------
-        dpbase.schema.ConfigError
-            Naming the key path and what was expected.
-        """
-        section = Section.of(value, path)
-        host = section.string("host", "127.0.0.1")
-        port = section.integer("port", 14550, minimum=0, maximum=65535)
-        key_text = section.raw("signing_key", None)
-        timeout_s = section.number("heartbeat_timeout_s", 5.0, minimum=0.0, exclusive_minimum=True)
-        section.finish()
-        key = None
-        if key_text is not None:
-            expected = "64 hexadecimal digits (a 32-byte key)"
-            if not isinstance(key_text, str):
-                raise ConfigError(join(path, "signing_key"), expected, show_got=False)
-            try:
-                key = parse_signing_key(key_text)
-            except ValueError as error:
-                raise ConfigError(join(path, "signing_key"), expected, show_got=False) from error
-        return cls(host, port, key, timeout_s)
-
-    def reader(self, sink: Callable[[MavEvent], Any], **options: Any) -> MavlinkUdpReader:
-        """A :class:`MavlinkUdpReader` for this configuration (``options``: clock, source_names …)."""
-        return MavlinkUdpReader(sink, bind=(self.host, self.port), signing_key=self.signing_key,
-                                heartbeat_timeout_s=self.heartbeat_timeout_s, **options)
 
 
 class MavlinkUdpReader:

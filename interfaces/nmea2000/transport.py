@@ -36,7 +36,6 @@ from typing import Any, Literal
 
 import can
 
-from dpbase.schema import ConfigError, Section
 from interfaces.messages import LinkStatus, Measurement, Rejected, RejectedInput
 from interfaces.nmea2000.codec import BROADCAST, PGN_ADDRESS_CLAIM, Frame, N2kDecoder, make_can_id, n2k_source_name
 
@@ -93,25 +92,6 @@ class CanBusConfig:
                              f"(one of {', '.join(sorted(can.VALID_INTERFACES))})")
         if not isinstance(self.channel, str) or not self.channel:
             raise ValueError(f"channel must be a non-empty string, got {self.channel!r}")
-
-    @classmethod
-    def from_config(cls, value: object, path: str = "can") -> CanBusConfig:
-        """Validate a config mapping ``{interface, channel, options}``.
-
-        Raises
-        ------
-        dpbase.schema.ConfigError
-            Naming the key path and what was expected.
-        """
-        section = Section.of(value, path)
-        interface = section.string("interface", choices=sorted(can.VALID_INTERFACES))
-        channel = section.string("channel")
-        options = section.section("options").data
-        section.finish()
-        try:
-            return cls(interface, channel, dict(options))
-        except ValueError as error:
-            raise ConfigError(path, str(error), show_got=False) from error
 
     @property
     def name(self) -> str:

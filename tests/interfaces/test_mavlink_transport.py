@@ -13,10 +13,9 @@ from collections.abc import Callable
 
 import pytest
 
-from dpbase.schema import ConfigError
 from interfaces.mavlink.codec import MavlinkEncoder
 from interfaces.mavlink.probe import sequence_of
-from interfaces.mavlink.transport import MavlinkUdpConfig, MavlinkUdpReader, MavlinkUdpSender, RawPacket
+from interfaces.mavlink.transport import MavlinkUdpReader, MavlinkUdpSender, RawPacket
 from interfaces.messages import (
     Attitude,
     FixQuality,
@@ -183,15 +182,3 @@ def test_close_stops_the_thread() -> None:
     assert thread is not None and not thread.is_alive()
 
 
-def test_udp_config_is_validated_with_key_paths() -> None:
-    config = MavlinkUdpConfig.from_config({"port": 0, "signing_key": KEY.hex(), "heartbeat_timeout_s": 3},
-                                          "sensors.ap")
-    assert config == MavlinkUdpConfig("127.0.0.1", 0, KEY, 3.0)
-    with config.reader(lambda e: None) as reader:
-        assert reader.address[0] == "127.0.0.1" and reader.address[1] > 0 and reader.decoder.signed
-    with pytest.raises(ConfigError, match=r"sensors\.ap\.signing_key: expected 64 hexadecimal digits"):
-        MavlinkUdpConfig.from_config({"signing_key": "abc"}, "sensors.ap")
-    with pytest.raises(ConfigError, match=r"sensors\.ap\.prot"):
-        MavlinkUdpConfig.from_config({"prot": 1}, "sensors.ap")
-    with pytest.raises(ConfigError, match=r"sensors\.ap\.port"):
-        MavlinkUdpConfig.from_config({"port": 70000}, "sensors.ap")

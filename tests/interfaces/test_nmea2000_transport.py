@@ -172,18 +172,6 @@ def test_a_sink_that_raises_does_not_stop_the_reader() -> None:
     assert abs(second.message.heading_rad - 0.5) < 1e-3 and reader.counters["sink_errors"] == 1
 
 
-def test_bus_config_is_validated_with_key_paths() -> None:
-    config = CanBusConfig.from_config({"interface": "socketcan", "channel": "can0", "options": {"bitrate": 250000}},
-                                      "sensors.n2k.bus")
-    assert config == CanBusConfig("socketcan", "can0", {"bitrate": 250000}) and config.name == "socketcan:can0"
-    with pytest.raises(ConfigError, match=r"sensors\.n2k\.bus\.interface: expected one of"):
-        CanBusConfig.from_config({"interface": "vcan", "channel": "can0"}, "sensors.n2k.bus")
-    with pytest.raises(ConfigError, match=r"bus\.chanel"):
-        CanBusConfig.from_config({"interface": "virtual", "channel": "x", "chanel": "y"}, "bus")
-    with pytest.raises(ConfigError, match=r"bus\.channel"):
-        CanBusConfig.from_config({"interface": "virtual"}, "bus")
-
-
 def test_remote_server_in_a_thread_bridges_two_clients() -> None:
     events = queue.Queue()
     with start_remote_server(mode="thread") as server:
