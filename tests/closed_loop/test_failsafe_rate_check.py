@@ -20,8 +20,7 @@ def test_a_drifting_lone_gyro_is_rejected_on_the_rate_of_turn(vessel: str) -> No
     case = Case(vessel, "gyro_drift", START_S, 60.0, rate_of_turn=True)
     run, outcome = run_case(case)
     bounds = VESSELS[vessel]
-    assert outcome.max_position_m <= bounds["position_bound_m"], outcome
-    assert outcome.max_heading_deg <= bounds["heading_bound_deg"], outcome
+    assert outcome.within(case), outcome  # the vessel's position and heading bounds
     assert outcome.final_mode == "auto_position" and not outcome.left_dp, run.result.mode_changes
     assert {"heading.rate_disagreement", "sensor.gyro1.rejected", "heading.dead_reckoning"} <= set(outcome.alarms)
     assert "estimator.reset" not in outcome.alarms and "heading.reference_rejected" not in outcome.alarms
@@ -41,9 +40,7 @@ def test_a_drifting_lone_gyro_is_rejected_on_the_rate_of_turn(vessel: str) -> No
 def test_a_rate_sensor_off_by_as_much_never_rejects_the_gyro(vessel: str) -> None:
     case = Case(vessel, "rot_offset", START_S, 60.0, rate_of_turn=True)
     _, outcome = run_case(case)
-    bounds = VESSELS[vessel]
-    assert outcome.max_position_m <= bounds["position_bound_m"], outcome
-    assert outcome.max_heading_deg <= bounds["heading_bound_deg"], outcome
+    assert outcome.within(case), outcome  # the vessel's position and heading bounds
     assert outcome.final_mode == "auto_position" and not outcome.left_dp
     assert "sensor.gyro1.rejected" not in outcome.alarms and "heading.lost" not in outcome.alarms, outcome.alarms
     assert {"heading.rate_disagreement", "sensor.rot1.rejected"} <= set(outcome.alarms)
