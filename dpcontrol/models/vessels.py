@@ -436,7 +436,10 @@ def vessel_from_config(value: object, path: str = "vessel") -> VesselData:
 
     mass_matrix = pick("mass_matrix", section.matrix, (3, 3))
     damping_matrix = pick("damping_matrix", section.matrix, (3, 3))
-    length = pick("length_m", section.number, 1.0, minimum=0.0, exclusive_minimum=True)
+    # Required for a vessel of one's own: every scale-dependent default (the wave filter's process noise, the
+    # pole placement, the drift-off horizon, the Froude-scaled fault windows) is derived from it, and a silent
+    # default would tune a 60 m vessel as a 1 m model.
+    length = pick("length_m", section.number, minimum=0.0, exclusive_minimum=True)
     default_mass = float(mass_matrix[0, 0]) if base is None else base.mass_kg
     if section.has("thrusters") or base is None:
         thrusters = parse_list(section, "thrusters", parse_thruster, required=True, min_items=1)

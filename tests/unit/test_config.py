@@ -72,6 +72,12 @@ def test_every_shipped_example_validates(capsys: pytest.CaptureFixture[str]) -> 
     (lambda c: c.update(vessel={"base": "cybership2", "thrusters": [{"name": "t", "kind": "propeller_rudder",
                                                                       "x_m": -1, "y_m": 0, "max_thrust_n": 1}]}),
      "vessel.thrusters[0].rudder_max_angle_deg"),
+    # a vessel of one's own must say how long she is: every scale-dependent default derives from it
+    (lambda c: c.update(vessel={"name": "own", "mass_matrix": [[6.0e6, 0, 0], [0, 8.0e6, 0], [0, 0, 3.0e9]],
+                                "damping_matrix": [[1.0e5, 0, 0], [0, 3.0e5, 0], [0, 0, 1.0e8]],
+                                "thrusters": [{"name": "t", "kind": "azimuth", "x_m": -30, "y_m": 0,
+                                               "max_thrust_n": 2.0e5}]}),
+     "vessel.length_m"),
     (lambda c: c.update(estimator={"kind": "mmae", "omegas_rad_s": [0.3, 40.0]}), "estimator.omegas_rad_s[1]"),
     (lambda c: c.update(estimator={"kind": "kf", "omega_rad_s": "x"}), "estimator.omega_rad_s"),
     (lambda c: c.update(estimator={"kind": "ekf"}), "estimator.kind"),
