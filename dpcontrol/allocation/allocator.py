@@ -35,13 +35,20 @@ in the extended-thrust variables ``f`` of :mod:`dpcontrol.allocation.geometry` (
   kept. Without lift (no thrust, or astern) the rudder slews towards the angle the
   unconstrained allocation wants.
 * Slack: ``s = s⁺ − s⁻`` (``s± ≥ 0``) absorbs what cannot be produced, weighted by an exact
-  penalty ``ρ(s⁺ + s⁻)`` plus ``Q(s⁺² + s⁻²)`` (ρ = Q = 10⁴ in normalised units, ≫ the
+  penalty ``ρ(s⁺ + s⁻)`` plus ``Q(s⁺² + s⁻²)`` (ρ = Q = 10⁴ in normalised units, 10⁵ for yaw, ≫ the
   multipliers of any feasible allocation): a feasible demand is met exactly (to the solver
   tolerance, ≈ 10⁻⁹ relative), an infeasible one gives the best feasible force (the quadratic
   part spreads the shortfall over the DOFs), reported as ``shortfall_b``. A pure quadratic
   slack needs a weight ≈ 10⁸ for 10⁻⁸ accuracy, and that makes the multipliers of saturated
   allocations so large that the active-set solvers fail (daqp cycles, quadprog reports
   inconsistent constraints) — measured on this problem.
+* **Heading priority**: the yaw row's ρ and Q are ten times the surge and sway rows' (:data:`DEFAULT_SLACK`), so
+  when the thrusters cannot meet the whole demand the shortfall goes to position, not heading — the practice of
+  commercial DP systems (heading priority), because a vessel that loses heading turns her side to the weather
+  and the environmental load grows beyond what any allocation can meet. Found on the Blue Lady in a 0.22 m/s
+  current 27° off the bow: with equal weights the allocator gave up the yaw moment for sway force and she fell
+  77° off heading and 9.7 m off position; with heading priority 1.2° rms and 1.4 m (docs/fault-handling.md).
+  Ten, not more: the multipliers grow with the weights (see above).
 
 Variables are normalised by each thruster's largest thrust and the equality rows by the
 capability per DOF, so the QP is well scaled for a 1 m model and a 260 m tanker alike.
@@ -109,6 +116,10 @@ from dpcontrol.allocation.kernels import (
 from dpcontrol.models.thrusters import ThrusterSpec
 
 _MAX_RUDDER_ENUMERATION = 3     # ahead/astern combinations tried for at most this many rudders
+HEADING_PRIORITY = 10.0
+"""How much more a shortfall of yaw moment costs than one of surge or sway force (normalised units)."""
+DEFAULT_SLACK = (1e4, 1e4, HEADING_PRIORITY * 1e4)
+"""Default ``ρ`` and ``Q`` of the slack per DOF (surge, sway, yaw), normalised units: heading priority."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -172,9 +183,9 @@ class ThrustAllocator:
     rudder_lift_weight : float
         Cost multiplier of the rudder lift relative to the propeller thrust.
     slack_weight : float or 3 floats
-        ``Q`` in normalised units (default 1e4).
+        ``Q`` in normalised units (default :data:`DEFAULT_SLACK`: heading priority).
     slack_penalty : float or 3 floats
-        ``ρ`` in normalised units (default 1e4).
+        ``ρ`` in normalised units (default :data:`DEFAULT_SLACK`).
     polygon_sides : int
         Sides of the inscribed polygon over a full circle (>= 8).
 
@@ -197,7 +208,8 @@ class ThrustAllocator:
 
     def __init__(self, thrusters: Sequence[ThrusterSpec], sample_time_s: float, *,  # noqa: PLR0915 - every allocation constant is validated and precomputed here once (geometry, limits, QP matrices), off the per-step path
                  thrust_weights: Sequence[float] | None = None, rudder_lift_weight: float = 0.5,
-                 slack_weight: float | Sequence[float] = 1e4, slack_penalty: float | Sequence[float] = 1e4,
+                 slack_weight: float | Sequence[float] = DEFAULT_SLACK,
+                 slack_penalty: float | Sequence[float] = DEFAULT_SLACK,
                  polygon_sides: int = 24) -> None:
         if not (isinstance(sample_time_s, (int, float)) and math.isfinite(sample_time_s) and sample_time_s > 0.0):
             raise ValueError(f"sample_time_s must be finite and > 0, got {sample_time_s!r}")

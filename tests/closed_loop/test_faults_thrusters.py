@@ -115,9 +115,15 @@ def test_case10_capability_shortfall_alarm_when_the_weather_exceeds_what_is_left
     assert raised is not None and raised - 120.0 <= monitor.shortfall_persist_s + 1.0
     assert "thrusters.capability" in run.status.active_codes(raised)
     assert not any(r for t, r in run.events("thrusters.capability") if t < 120.0)  # none while intact
-    # what the operator sees of it: the heading goes (the alarm limit, 5°, within 10 s of the trip)
-    heading = _raised(run, "heading.deviation.alarm", 120.0)
-    assert heading is not None and heading - 120.0 <= 10.0
+    # heading priority (the allocator's docstring): the two stern azimuths cannot give sway and yaw apart, and
+    # the shortfall goes to sway — the yaw moment is met and the heading kept within 15° until the wrong-way
+    # azimuth at 200 s (with equal weights the moment was given up: 6.7 % of the capability short, 32.8° off)
+    window = run.between(135.0, 195.0)
+    scale = run.simulation.controller.allocator.capability_scale
+    yaw_short = np.abs(run.col("tau_n_nm")[window] - run.col("tau_act_n_nm")[window]).mean() / scale[2]
+    sway_short = np.abs(run.col("tau_y_n")[window] - run.col("tau_act_y_n")[window]).mean() / scale[1]
+    assert yaw_short < 0.01 < 0.1 < sway_short, (yaw_short, sway_short)
+    assert np.degrees(np.nanmax(run.heading_error_rad()[run.between(120.0, 200.0)])) <= 15.0
     wrong = _raised(run, "thruster.azimuth_starboard.unavailable", 200.0)
     assert wrong is not None and wrong - 200.0 <= monitor.mismatch_persist_s + 2.0
     assert np.all(run.thrust_n()[run.between(wrong + DT, 230.0), _index(run, "azimuth_starboard")] == 0.0)

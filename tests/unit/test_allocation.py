@@ -203,6 +203,27 @@ def test_infeasible_demand_saturates_gracefully_and_reports_the_shortfall() -> N
     assert relative_error(allocator, small, result.tau_achieved_b) <= 1e-6
 
 
+def test_a_demand_beyond_the_thrusters_keeps_the_heading_first() -> None:
+    """Heading priority: the Blue Lady's two tunnels asked for more sway force than they have, together with a yaw
+    moment they could give alone. The shortfall goes to sway; the yaw moment is met (with equal weights it was cut
+    by a third: the vessel then turns her side to the weather, the explore case in the allocator's docstring)."""
+    thrusters = BUILTIN_VESSELS["blue_lady"].thrusters
+    results = {}
+    for label, slack in (("priority", {}), ("equal", {"slack_weight": 1e4, "slack_penalty": 1e4})):
+        allocator = ThrustAllocator(thrusters, DT, **slack)
+        capability = allocator.capability_scale
+        tau = np.array([0.0, 1.5 * capability[1], -0.3 * capability[2]])
+        for _ in range(200):  # the thrust ramps
+            result = allocator.allocate(tau)
+        assert result.saturated and result.solver_status == "optimal"
+        results[label] = (result.tau_achieved_b, tau)
+    achieved, tau = results["priority"]
+    assert achieved[2] == pytest.approx(tau[2], rel=0.02)
+    assert achieved[1] < tau[1]  # the shortfall is sway's
+    equal, _ = results["equal"]
+    assert abs(equal[2]) < 0.9 * abs(tau[2])  # without priority the moment was given up
+
+
 @pytest.mark.parametrize("name", sorted(LAYOUT_SPECS))
 def test_rate_limits_hold_over_a_sequence_of_demands(name) -> None:
     specs = LAYOUT_SPECS[name]
