@@ -35,7 +35,8 @@ from sim_plant.bench.failsafe import VESSELS, Case, Outcome, run_case
 from sim_plant.faults import GNSS_FAULTS, GYRO_FAULTS, ROT_FAULTS
 
 NOTED = ("dead_reckoning", "reference_rejected", "frozen", "stale", "rejected", "noisy", "fallback", "restored",
-         "reset", "deviation.alarm", "drift_off", "rate_disagreement")  # the alarm codes listed in the table
+         "reset", "deviation.alarm", "drift_off", "rate_disagreement",
+         "velocity_disagreement")  # the alarm codes listed in the table
 
 
 def draw_cases(runs: int, seed: int, vessels: list[str], rate_of_turn: bool = False) -> list[Case]:

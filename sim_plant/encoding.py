@@ -4,18 +4,18 @@ One encoder per sensor, shared by the real-time emulator's links and the lockste
 what the controller decodes in a lockstep run is byte for byte what the emulator would put on the
 wire:
 
-* NMEA 0183 (:class:`NmeaSensorEncoder`): a GNSS sends GGA + GST (or the configured sentences among
-  GGA, GNS, RMC, GST), a gyrocompass THS + ROT (or HDT, THS, ROT); an invalid sample is GGA quality 0
-  (+ RMC status V when RMC is sent) or THS mode V (+ ROT status V). HDT has no validity field, so an
-  HDT-only gyro sends a THS V for an invalid sample. A rate-of-turn sensor (``rot``) sends ``$TIROT``
-  (talker TI, turn indicator), status V when invalid.
-* NMEA 2000 (:class:`N2kSensorEncoder`): a GNSS sends PGN 129029 (fast packet), a gyro 127250 (true)
-  + 127251, a rate-of-turn sensor 127251; an invalid sample is 129029 with method "no GNSS" or
-  127250 / 127251 with the heading / rate "not available". GST statistics have no PGN here and are
-  counted as not carried.
-* MAVLink 2 (:class:`MavlinkSensorEncoder`): a GNSS sends GPS_RAW_INT, a gyro ATTITUDE (yaw and yaw
-  rate in one message), a rate-of-turn sensor ATTITUDE with only ``yawspeed``; an invalid sample is
-  GPS_RAW_INT fix_type 0 or ATTITUDE without values.
+* NMEA 0183 (:class:`NmeaSensorEncoder`): a GNSS sends GGA + VTG + GST (or the configured sentences among
+  GGA, GNS, RMC, VTG, GST; its velocity, SOG/COG, goes in VTG and RMC), a gyrocompass THS + ROT (or HDT,
+  THS, ROT); an invalid sample is GGA quality 0 (+ RMC status V when RMC is sent; no VTG) or THS mode V
+  (+ ROT status V). HDT has no validity field, so an HDT-only gyro sends a THS V for an invalid sample. A
+  rate-of-turn sensor (``rot``) sends ``$TIROT`` (talker TI, turn indicator), status V when invalid.
+* NMEA 2000 (:class:`N2kSensorEncoder`): a GNSS sends PGN 129029 (fast packet) + 129026 (COG & SOG,
+  rapid update), a gyro 127250 (true) + 127251, a rate-of-turn sensor 127251; an invalid sample is
+  129029 with method "no GNSS" (no 129026) or 127250 / 127251 with the heading / rate "not available".
+  GST statistics have no PGN here and are counted as not carried.
+* MAVLink 2 (:class:`MavlinkSensorEncoder`): a GNSS sends GPS_RAW_INT (``vel``/``cog`` from its
+  velocity), a gyro ATTITUDE (yaw and yaw rate in one message), a rate-of-turn sensor ATTITUDE with only
+  ``yawspeed``; an invalid sample is GPS_RAW_INT fix_type 0 or ATTITUDE without values.
 """
 
 from __future__ import annotations
@@ -24,7 +24,15 @@ from collections import Counter
 from collections.abc import Sequence
 
 from interfaces.mavlink.codec import MavlinkEncoder
-from interfaces.messages import Attitude, Heading, PositionErrorStats, PositionFix, RateOfTurn, SensorMessage
+from interfaces.messages import (
+    Attitude,
+    CourseOverGround,
+    Heading,
+    PositionErrorStats,
+    PositionFix,
+    RateOfTurn,
+    SensorMessage,
+)
 from interfaces.nmea0183 import (
     encode_gga,
     encode_gga_no_fix,
@@ -35,15 +43,16 @@ from interfaces.nmea0183 import (
     encode_rmc_no_fix,
     encode_rot,
     encode_ths,
+    encode_vtg,
 )
 from interfaces.nmea2000.codec import N2kEncoder
 from sim_plant.sensors import InvalidFix
 
 Message = SensorMessage | InvalidFix
 
-POSITION_SENTENCES = ("GGA", "GNS", "RMC", "GST")
+POSITION_SENTENCES = ("GGA", "GNS", "RMC", "VTG", "GST")
 HEADING_SENTENCES = ("HDT", "THS", "ROT")
-DEFAULT_POSITION_SENTENCES = ("GGA", "GST")
+DEFAULT_POSITION_SENTENCES = ("GGA", "VTG", "GST")
 DEFAULT_HEADING_SENTENCES = ("THS", "ROT")
 RATE_SENTENCES = ("ROT",)
 DATE_DDMMYY = "010126"  # RMC needs a date; the plant has none (1 January 2026)
@@ -79,6 +88,7 @@ class NmeaSensorEncoder:
         """The sentences (with checksum and CR LF) of one sample group."""
         talker, wanted = self.talker, self.sentences
         out: list[bytes] = []
+        course = next((m for m in messages if isinstance(m, CourseOverGround)), None)
         for m in messages:
             if isinstance(m, PositionFix):
                 if "GGA" in wanted:
@@ -86,7 +96,10 @@ class NmeaSensorEncoder:
                 if "GNS" in wanted:
                     out.append(encode_gns(m, self.gns_talker))
                 if "RMC" in wanted:
-                    out.append(encode_rmc(m, talker=talker, date_ddmmyy=DATE_DDMMYY))
+                    out.append(encode_rmc(m, course, talker=talker, date_ddmmyy=DATE_DDMMYY))
+            elif isinstance(m, CourseOverGround):
+                if "VTG" in wanted:
+                    out.append(encode_vtg(m, talker))
             elif isinstance(m, PositionErrorStats):
                 if "GST" in wanted:
                     out.append(encode_gst(m, talker))
@@ -143,6 +156,8 @@ class N2kSensorEncoder:
                 frames += encoder.heading(m, sid=sid)
             elif isinstance(m, RateOfTurn):
                 frames += encoder.rate_of_turn(m, sid=sid)
+            elif isinstance(m, CourseOverGround):
+                frames += encoder.cog_sog(m, sid=sid)
             elif isinstance(m, InvalidFix):
                 if m.kind == "position":
                     frames += encoder.gnss_position(None, date_days=DATE_DAYS_SINCE_1970, sid=sid)
@@ -174,10 +189,11 @@ class MavlinkSensorEncoder:
         boot_ms = int(t_s * 1000.0) % (1 << 32)
         heading = next((m for m in messages if isinstance(m, Heading)), None)
         rate = next((m for m in messages if isinstance(m, RateOfTurn)), None)
+        course = next((m for m in messages if isinstance(m, CourseOverGround)), None)
         out: list[bytes] = []
         for m in messages:
             if isinstance(m, PositionFix):
-                out.append(encoder.gps_raw_int(m))
+                out.append(encoder.gps_raw_int(m, course=course))
             elif isinstance(m, InvalidFix):
                 if m.kind == "position":
                     out.append(encoder.gps_raw_int(None, fix_type=0))

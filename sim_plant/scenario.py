@@ -29,7 +29,8 @@ heading-only setpoint is an autopilot course),
 ``rate_degps``; ``rot_offset`` ``rate_degps``; ``malformed_burst`` ``count``}],
 ``sensors`` [{``name``, ``kind`` gnss | gyro | rot, ``protocol`` nmea0183 | nmea2000 | mavlink, ``rate_hz``,
 ``offset_s``; gnss: ``noise_m``, ``markov_m``, ``markov_time_constant_s``, ``lever_arm_m`` [x, y],
-``quality``, ``satellites``, ``hdop``, ``antenna_height_m``, ``gst``; gyro: ``noise_deg``, ``bias_deg``,
+``quality``, ``satellites``, ``hdop``, ``antenna_height_m``, ``gst``, ``velocity`` (SOG/COG, true),
+``velocity_noise_mps`` (0.02); gyro: ``noise_deg``, ``bias_deg``,
 ``markov_deg``, ``markov_time_constant_s``, ``rate_of_turn``, ``rot_noise_degps``; rot (a rate-of-turn sensor
 independent of the gyros): ``noise_degps`` (0.01), ``bias_degps`` (0.03)}] (default: one GNSS
 ``gnss1`` and one gyro ``gyro1`` on nmea0183 with the vessel's default noise).
@@ -500,6 +501,8 @@ def _sensors(root: Section, gnss_noise_m: float, gyro_noise_deg: float) -> tuple
                                             maximum=MAX_GNSS_ERROR_M),
                 gst=sec.boolean("gst", True),
                 offset_s=offset,
+                velocity=sec.boolean("velocity", True),
+                velocity_noise_mps=sec.number("velocity_noise_mps", 0.02, minimum=0.0, maximum=100.0),
             )
         elif kind == "rot":
             spec = RotSpec(

@@ -6,7 +6,15 @@ GNSS (per horizontal axis, NED): reported antenna position = total position + R(
 converted to WGS-84 with :meth:`dpbase.geodesy.LocalFrame.surface_to_geodetic`. Each fix is a
 :class:`~interfaces.messages.PositionFix` (with quality, satellites, HDOP, UTC time), optionally
 followed by a :class:`~interfaces.messages.PositionErrorStats` (GST: 1-σ = √(σ² + σ_gm²) times the
-noise factor of an active ``gnss_noise`` fault).
+noise factor of an active ``gnss_noise`` fault), and a
+:class:`~interfaces.messages.CourseOverGround` (SOG/COG: the receiver's Doppler velocity) unless ``velocity`` is
+off: the antenna's true velocity over ground at the epoch — the three-point backward derivative of the true
+antenna position at this sample and the two before (exact for a quadratic; the mean over the last epoch with the
+second fix), LF + WF motion, lever arm included: the wave motion and r × lever arm are real motion — plus white
+noise ``velocity_noise_mps`` per axis (× the ``gnss_noise`` factor), from a stream of its own (the
+position noise is the same with or without it). None with a receiver's first fix. Its errors are the Doppler's,
+not the position's: ``gnss_jump``, ``gnss_drift`` and the Gauss–Markov wander (multipath, a correction) move the
+position only; ``gnss_freeze`` repeats both; ``gnss_invalid`` and ``gnss_dropout`` send neither.
 
 Gyrocompass: heading = ψ_tot + bias + Gauss–Markov error + white noise, wrapped to [0, 2π) as sent,
 as :class:`~interfaces.messages.Heading`; optionally a :class:`~interfaces.messages.RateOfTurn`
@@ -40,7 +48,15 @@ import numpy as np
 
 from dpbase.frames import TWO_PI, ssa
 from dpbase.geodesy import LocalFrame, lever_arm_ned
-from interfaces.messages import FixQuality, Heading, PositionErrorStats, PositionFix, RateOfTurn, SensorMessage
+from interfaces.messages import (
+    CourseOverGround,
+    FixQuality,
+    Heading,
+    PositionErrorStats,
+    PositionFix,
+    RateOfTurn,
+    SensorMessage,
+)
 from sim_plant.faults import Fault
 
 PROTOCOLS: tuple[str, ...] = ("nmea0183", "nmea2000", "mavlink")
@@ -122,6 +138,10 @@ class GnssSpec:
         Emit PositionErrorStats with each fix.
     offset_s : float
         Time of the first sample [s].
+    velocity : bool
+        Emit CourseOverGround (SOG/COG) with each fix.
+    velocity_noise_mps : float
+        White noise 1-σ of the velocity per horizontal axis [m/s] (a DGPS receiver's Doppler: 0.02–0.05).
     """
 
     name: str
@@ -137,6 +157,8 @@ class GnssSpec:
     antenna_height_m: float = 0.0
     gst: bool = True
     offset_s: float = 0.0
+    velocity: bool = True
+    velocity_noise_mps: float = 0.02
 
     kind = "gnss"
 
@@ -291,6 +313,47 @@ class GnssSensor(_Sensor):
         self._frame = frame
         self._gm = [0.0, 0.0]
         self._last_latlon: tuple[float, float] | None = None
+        # the velocity's noise: a stream of its own (spawned: the position's stream is not advanced)
+        self._velocity_rng = np.random.default_rng(rng.bit_generator.seed_seq.spawn(1)[0])  # type: ignore[attr-defined]
+        self._velocity_block: list[float] = []
+        self._velocity_used = 0
+        # the true antenna positions (t_s, north_m, east_m) of the last two samples, the older first
+        self._previous_antenna: list[tuple[float, float, float]] = []
+        self._last_velocity: CourseOverGround | None = None
+
+    def _velocity_normals(self) -> tuple[float, float]:
+        if self._velocity_used + 2 > len(self._velocity_block):
+            self._velocity_block = self._velocity_rng.standard_normal(2048).tolist()
+            self._velocity_used = 0
+        i = self._velocity_used
+        self._velocity_used += 2
+        return self._velocity_block[i], self._velocity_block[i + 1]
+
+    def _velocity(self, t_s: float, north_m: float, east_m: float, factor: float) -> CourseOverGround | None:
+        """SOG/COG at ``t_s`` from the true antenna position (module docstring); None without a previous one."""
+        history = self._previous_antenna
+        white_n, white_e = self._velocity_normals()  # drawn every sample: faults do not shift the stream
+        if len(history) == 2:
+            (t0, n0, e0), (t1, n1, e1) = history
+            h1, h2 = t1 - t0, t_s - t1  # (> 0: samples are scheduled forward)
+            c0 = h2 / (h1 * (h1 + h2))
+            c1 = -(h1 + h2) / (h1 * h2)
+            c2 = (h1 + 2.0 * h2) / (h2 * (h1 + h2))
+            v_n = c0 * n0 + c1 * n1 + c2 * north_m
+            v_e = c0 * e0 + c1 * e1 + c2 * east_m
+            history.pop(0)
+        elif history:
+            t1, n1, e1 = history[0]
+            v_n = (north_m - n1) / (t_s - t1)
+            v_e = (east_m - e1) / (t_s - t1)
+        else:
+            history.append((t_s, north_m, east_m))
+            return None
+        history.append((t_s, north_m, east_m))
+        sigma = factor * self.gnss.velocity_noise_mps
+        v_n += sigma * white_n
+        v_e += sigma * white_e
+        return CourseOverGround(math.atan2(v_e, v_n) % TWO_PI, math.hypot(v_n, v_e))
 
     def sample(self, t_s: float, north_m: float, east_m: float, heading_rad: float) -> list[SensorSample]:
         """Samples at ``t_s`` from the vessel's TOTAL pose (LF + WF), then schedule the next.
@@ -327,18 +390,23 @@ class GnssSensor(_Sensor):
         gm = self._gm
         n = north_m + dn + gm[0] + factor * spec.noise_m * white_n + off_n
         e = east_m + de + gm[1] + factor * spec.noise_m * white_e + off_e
+        velocity = self._velocity(t_s, north_m + dn, east_m + de, factor) if spec.velocity else None
         utc = self._utc(t_s)
         if "gnss_freeze" in kinds and self._last_latlon is not None:
             lat, lon = self._last_latlon
+            velocity = self._last_velocity
         else:
             lat, lon = self._frame.surface_to_geodetic(n, e, spec.antenna_height_m)
         if "gnss_invalid" in kinds:
             return [SensorSample(t_s, self.name, self.protocol,
                                  InvalidFix("position", "gnss_invalid", utc, lat, lon))]
         self._last_latlon = (lat, lon)
+        self._last_velocity = velocity
         out = [SensorSample(t_s, self.name, self.protocol,
                             PositionFix(lat, lon, spec.quality, utc, spec.satellites, spec.hdop,
                                         spec.antenna_height_m))]
+        if velocity is not None:
+            out.append(SensorSample(t_s, self.name, self.protocol, velocity))
         if spec.gst:
             sigma = math.hypot(factor * spec.noise_m, spec.markov_m)
             out.append(SensorSample(t_s, self.name, self.protocol,

@@ -294,10 +294,14 @@ def _parse_route(section: Section, transports: Mapping[str, TransportConfig]) ->
     transport = section.string("transport", choices=list(transports))
     rate = section.number("rate_hz", 1.0 if kind is SensorKind.POSITION else 10.0, minimum=0.0,
                           exclusive_minimum=True, maximum=100.0)
+    velocity_sigma = 0.1
     if kind is SensorKind.POSITION:
         sigma = section.number("sigma_m", 1.0, minimum=0.0, exclusive_minimum=True)
         arm = section.vector("lever_arm_m", 2, [0.0, 0.0])
         lever = (float(arm[0]), float(arm[1]))
+        # the receiver's velocity (SOG/COG): its 1-σ per axis, from the data sheet (the velocity check)
+        velocity_sigma = section.number("velocity_sigma_mps", 0.1, minimum=0.0, exclusive_minimum=True,
+                                        maximum=100.0)
     elif kind is SensorKind.RATE:
         # a rate-of-turn sensor: the white noise of one sample, from its data sheet [°/s]
         sigma = math.radians(section.number("sigma_degps", 0.05, minimum=0.0, exclusive_minimum=True,
@@ -315,7 +319,8 @@ def _parse_route(section: Section, transports: Mapping[str, TransportConfig]) ->
         if protocol != "nmea0183":
             raise ConfigError(f"{section.path}.sentences", "sentences only on an nmea0183 transport", protocol)
         sentences = tuple(s for _, s in section.items("sentences", min_items=1))
-        known = ("ROT",) if kind is SensorKind.RATE else ("GGA", "GNS", "RMC", "GLL", "GST", "HDT", "THS", "ROT")
+        known = ("ROT",) if kind is SensorKind.RATE else ("GGA", "GNS", "RMC", "GLL", "VTG", "GST", "HDT", "THS",
+                                                          "ROT")
         for where, value in section.items("sentences"):
             if value not in known:
                 raise ConfigError(where, "one of " + ", ".join(known), value)
@@ -339,8 +344,8 @@ def _parse_route(section: Section, transports: Mapping[str, TransportConfig]) ->
             raise ConfigError(f"{section.path}.system_id", "system_id only on a mavlink transport", protocol)
         system_id = section.integer("system_id", minimum=1, maximum=255)
     section.finish()
-    return SensorRoute(SensorConfig(name, kind, rate, sigma, lever), transport, talker, sentences, source_address,
-                       system_id, source_name)
+    return SensorRoute(SensorConfig(name, kind, rate, sigma, lever, velocity_sigma), transport, talker, sentences,
+                       source_address, system_id, source_name)
 
 
 def _parse_hub(section: Section) -> HubConfig:

@@ -101,6 +101,7 @@ from dpbase.frames import ssa
 from dpbase.geodesy import LocalFrame, lever_arm_ned
 from dpcontrol.runtime.alarms import AlarmRegistry, Severity
 from interfaces.messages import (
+    CourseOverGround,
     Heading,
     Measurement,
     PositionErrorStats,
@@ -132,6 +133,7 @@ class SensorState(str, Enum):
 _ALARM_STATES = frozenset({SensorState.STALE, SensorState.FROZEN, SensorState.REJECTED,
                            SensorState.DISCONNECTED})
 _HEALTHY_STATES = (SensorState.OK, SensorState.ISOLATED)  # fused, or voted out by the median test only
+_MAX_SPEED_MPS = 100.0  # a speed over ground beyond this is no ship's (interfaces.limits allows more)
 
 
 @dataclass(frozen=True)
@@ -149,6 +151,8 @@ class SensorConfig:
         Nominal 1-σ noise [m] for position, [rad] for heading, [rad/s] for a rate of turn.
     lever_arm_m : tuple of float
         Antenna position in the body frame (x forward, y starboard) [m]; position sensors only.
+    velocity_sigma : float
+        1-σ of the receiver's velocity (SOG/COG) per horizontal axis [m/s]; position sensors only (velocity check).
     """
 
     name: str
@@ -156,6 +160,7 @@ class SensorConfig:
     nominal_rate_hz: float
     sigma: float
     lever_arm_m: tuple[float, float] = (0.0, 0.0)
+    velocity_sigma: float = 0.1
 
 
 @dataclass(frozen=True)
@@ -198,6 +203,15 @@ class HubConfig:
     rot_check_sigma_factor: float = 5.0
     rot_check_min_rad: float = math.radians(1.0)
     rot_check_return_s: float = 10.0
+    # Each position reference against its own velocity (SOG/COG; module docstring, "Velocity check"): the sliding
+    # window [s], the limit's factor on the disagreement's 1-σ [-] and its floor [m], the time constant of the
+    # low-pass of position − ∫velocity [s], how long a rejected receiver must be back at its level before it is
+    # taken back [s]
+    velocity_check_window_s: float = 30.0
+    velocity_check_sigma_factor: float = 6.0
+    velocity_check_min_m: float = 1.0
+    velocity_check_filter_s: float = 2.0
+    velocity_check_return_s: float = 5.0
 
 
 @dataclass(eq=False, slots=True)
@@ -245,6 +259,8 @@ class _SensorTrack:
     peers: list[_SensorTrack] = field(init=False, default_factory=list)
     rate: _RateSource | None = field(init=False, default=None)  # a heading sensor's own rate of turn
     check: _RateCheck | None = field(init=False, default=None)  # against the rate sensor (a rate sensor configured)
+    velocity: _VelocityCheck | None = field(init=False, default=None)  # a position reference against its velocity
+    antenna: tuple[float, float] = (0.0, 0.0)  # the last sample's antenna position, NED [m] (no lever arm applied)
 
     def __post_init__(self, limits: HubConfig) -> None:
         config = self.config
@@ -373,6 +389,143 @@ class _RateCheck:
         self.disagreement = self.heading_change - (integral - self.integrals[tail])
 
 
+@dataclass(eq=False, slots=True)
+class _VelocityCheck:
+    """A position reference against its own velocity (module docstring, "Velocity check"): the integral of the
+    velocity, and a ring of (time, low-passed antenna position − ∫v dt, its variance, the integral's variance) at
+    each of the reference's new samples, allocated once."""
+
+    size: int  # ring capacity: twice the window's nominal samples
+    sigma_mps: float  # the velocity's 1-σ per axis [m/s]
+    times: list[float] = field(init=False)
+    north: list[float] = field(init=False)
+    east: list[float] = field(init=False)
+    variances: list[float] = field(init=False)  # of the low-passed value [m²]
+    integral_variances: list[float] = field(init=False)  # of ∫v dt since the integral started [m²]
+    head: int = -1
+    tail: int = 0
+    count: int = 0
+    samples: int = -1  # the reference's sample count at the last entry
+    velocity_t_s: float | None = None  # receive time of the latest velocity (None: none ever: the check is off)
+    v_north: float = 0.0  # the latest velocity [m/s]
+    v_east: float = 0.0
+    integral_north: float = 0.0  # ∫v dt up to velocity_t_s [m]
+    integral_east: float = 0.0
+    integral_variance: float = 0.0  # σ_v² Σh² [m²]
+    raw: tuple[float, float] = (0.0, 0.0)  # the last position − ∫v dt [m]
+    raw2: tuple[float, float] = (0.0, 0.0)  # the one before
+    noise_variance: float = 0.0  # of position − ∫v dt about its smooth part, per axis [m²] (second differences)
+    noise_samples: int = 0
+    filtered: tuple[float, float] = (0.0, 0.0)  # low-passed position − ∫v dt [m]
+    filtered_variance: float = 0.0
+    filter_samples: int = 0
+    last_t_s: float = 0.0  # time of the last entry
+    disagreement: tuple[float, float] = (0.0, 0.0)  # D over the window, (north, east) [m]
+    span_s: float = 0.0
+    limit: float = math.inf  # max(floor, k·σ_D) [m]
+    rejected: bool = False
+    # while rejected: the level before the disagreement (the window's oldest entry at the verdict), its
+    # variance and the integral's variance then; |level now − it| within half the limit for return_s: back
+    reference: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
+    agree_since_t_s: float | None = None
+    detail: str = ""
+
+    def __post_init__(self) -> None:
+        self.times = [0.0] * self.size
+        self.north = [0.0] * self.size
+        self.east = [0.0] * self.size
+        self.variances = [0.0] * self.size
+        self.integral_variances = [0.0] * self.size
+
+    def reset(self) -> None:
+        """A gap (the position or the velocity stale, frozen, disconnected): the window and the low-pass restart."""
+        self.count = 0
+        self.head = -1
+        self.tail = 0
+        self.samples = -1
+        self.filter_samples = 0
+        self.disagreement = (0.0, 0.0)
+        self.span_s = 0.0
+        self.limit = math.inf
+
+    def velocity(self, t_s: float, v_north: float, v_east: float, gap_s: float) -> None:
+        """A velocity sample [m/s] at ``t_s``: the integral advanced (trapezoid) from the previous one; after a gap
+        longer than ``gap_s`` the window restarts (the integral is not known across it)."""
+        last = self.velocity_t_s
+        if last is not None and 0.0 <= t_s - last <= gap_s:
+            h = t_s - last
+            self.integral_north += 0.5 * (self.v_north + v_north) * h
+            self.integral_east += 0.5 * (self.v_east + v_east) * h
+            self.integral_variance += self.sigma_mps * self.sigma_mps * h * h
+        elif last is not None and self.count:
+            self.reset()
+        self.velocity_t_s = t_s
+        self.v_north = v_north
+        self.v_east = v_east
+
+    def add(self, t_s: float, north_m: float, east_m: float, sigma_m: float, *, filter_s: float,
+            window_s: float, variance_alpha: float) -> None:
+        """A new position sample (antenna, NED [m]) at ``t_s``: position − ∫v dt (the integral carried to ``t_s``
+        with the latest velocity) low-passed into the ring; the window's D and span. Its noise is the larger of
+        ``sigma_m`` (what the receiver claims) and the one measured on position − ∫v dt itself: the velocity takes
+        the vessel's motion out, wave motion included, so the second differences hold the receiver's noise (var =
+        6σ² per axis); averaged with weight ``variance_alpha`` (a running mean first), not while rejected."""
+        dt = t_s - (self.velocity_t_s if self.velocity_t_s is not None else t_s)
+        q_north = north_m - (self.integral_north + self.v_north * dt)
+        q_east = east_m - (self.integral_east + self.v_east * dt)
+        if self.filter_samples >= 2 and not self.rejected:
+            d_north = q_north - 2.0 * self.raw[0] + self.raw2[0]
+            d_east = q_east - 2.0 * self.raw[1] + self.raw2[1]
+            own = (d_north * d_north + d_east * d_east) / 12.0
+            self.noise_samples += 1
+            alpha = max(variance_alpha, 1.0 / self.noise_samples)
+            self.noise_variance += alpha * (own - self.noise_variance)
+        self.raw2 = self.raw
+        self.raw = (q_north, q_east)
+        noise = sigma_m * sigma_m
+        if self.noise_samples >= 10:
+            noise = max(noise, self.noise_variance)
+        if self.filter_samples == 0:
+            self.filtered = (q_north, q_east)
+            self.filtered_variance = noise
+            self.filter_samples = 1
+        else:
+            self.filter_samples += 1
+            gap = max(t_s - self.last_t_s, 0.0)
+            alpha = max(1.0 - math.exp(-gap / filter_s), 1.0 / self.filter_samples)
+            f_north, f_east = self.filtered
+            self.filtered = (f_north + alpha * (q_north - f_north), f_east + alpha * (q_east - f_east))
+            self.filtered_variance = (1.0 - alpha) ** 2 * self.filtered_variance + alpha * alpha * noise
+        self.last_t_s = t_s
+        integral_variance = self.integral_variance + self.sigma_mps * self.sigma_mps * dt * dt
+        size = self.size
+        head = self.head = (self.head + 1) % size
+        self.times[head] = t_s
+        self.north[head], self.east[head] = self.filtered
+        self.variances[head] = self.filtered_variance
+        self.integral_variances[head] = integral_variance
+        if self.count == size:
+            self.tail = (self.tail + 1) % size
+        else:
+            self.count += 1
+        times = self.times
+        start = t_s - window_s
+        while self.count > 1 and times[(self.tail + 1) % size] <= start:
+            self.tail = (self.tail + 1) % size
+            self.count -= 1
+        tail = self.tail
+        self.span_s = t_s - times[tail]
+        self.disagreement = (self.north[head] - self.north[tail], self.east[head] - self.east[tail])
+
+    def sigma(self, tail: int | None = None) -> float:
+        """1-σ of D from the window's oldest entry (or entry ``tail``) to the newest [m]: the low-passed position
+        noise at both ends and the velocity noise integrated in between."""
+        tail = self.tail if tail is None else tail
+        head = self.head
+        return math.sqrt(self.variances[head] + self.variances[tail] +
+                         max(self.integral_variances[head] - self.integral_variances[tail], 0.0))
+
+
 def _healthy(tracks: list[_SensorTrack], t_s: float) -> list[_SensorTrack]:
     """The references of ``tracks`` fit to fuse at ``t_s``: OK or ISOLATED, with an accepted sample that is
     not stale."""
@@ -417,6 +570,11 @@ class HubOutput:
         or ``<heading sensor> rate of turn``); None while a reference is in use or the model carries it.
     heading_dr_sigma_rad : float
         1-σ of that dead-reckoned heading [rad] (0 when not dead-reckoning on a rate of turn).
+    position_velocity_source : str or None
+        With every position reference lost and one of them rejected by the velocity check: the receiver whose own
+        velocity the position is dead-reckoned on; None otherwise.
+    position_dr_sigma_m : float
+        1-σ of that dead-reckoned position [m] (0 when not dead-reckoning on a velocity).
     position_reset, heading_reset : bool
         Every reference of that kind has failed the prediction test for ``reject_persist_s``: the
         references agree with each other, so the *estimate* is wrong (e.g. after long dead
@@ -433,6 +591,8 @@ class HubOutput:
     yaw_rate_radps: float | None = None
     heading_rate_source: str | None = None
     heading_dr_sigma_rad: float = 0.0
+    position_velocity_source: str | None = None
+    position_dr_sigma_m: float = 0.0
     position_reset: bool = False
     heading_reset: bool = False
 
@@ -483,6 +643,13 @@ class SensorHub:
         if self._checks:
             for track in self._heading:
                 track.check = _RateCheck(2 * math.ceil(config.rot_check_window_s * track.config.nominal_rate_hz) + 4)
+        for track in self._position:  # the velocity check (module docstring): off until a velocity arrives
+            track.velocity = _VelocityCheck(
+                2 * math.ceil(config.velocity_check_window_s * track.config.nominal_rate_hz) + 4,
+                track.config.velocity_sigma)
+        self._velocity_seen = False  # some position reference has sent a velocity
+        self._velocity_alarm = ""  # the text of position.velocity_disagreement while raised
+        self._velocity_dr_variance: float | None = None  # σ²_dr of the position fed on a velocity (None: not)
         self._check_ref: _RateSource | None = None  # the rate sensor the headings were compared with last
         self._check_integral = 0.0  # ∫(r − b̂)dt of that rate sensor [rad]
         self._check_verdict: str | None = None  # heading.rate_disagreement raised: "gyro", "rate" or "unknown"
@@ -571,6 +738,8 @@ class SensorHub:
         self._ingest(measurements, predicted_y_n, predicted_variance)
         if self._checks:
             self._rate_check(t_s, dt)
+        if self._velocity_seen:
+            self._velocity_check(t_s)
         out = self._out
         if self._rejecting:  # (nothing to search for otherwise: the usual case)
             out.position_reset = self._all_rejecting(self._position, t_s)
@@ -607,6 +776,8 @@ class SensorHub:
                                       healthy_position)
         head_new = self._fuse_heading(t_s, None if out.heading_reset else predicted_y_n, healthy_heading)
         out.measured = (pos_new, pos_new, head_new)
+        if self._velocity_seen:
+            self._velocity_dead_reckoning(t_s, predicted_y_n)
         out.yaw_rate_radps = self._yaw_rate
         if self._rates:
             self._rate_of_turn(t_s, dt, head_new, predicted_y_n)
@@ -637,6 +808,8 @@ class SensorHub:
                         self._ingest_rate(track.rate, measurement.t_s, message.rate_radps)
             elif isinstance(message, PositionFix):
                 self._ingest_position(track, measurement.t_s, message, predicted_y_n, predicted_variance)
+            elif isinstance(message, CourseOverGround):
+                self._ingest_velocity(track, measurement.t_s, message)
             elif isinstance(message, PositionErrorStats):
                 sigma = _gst_sigma(message.sigma_north_m, message.sigma_east_m)
                 if sigma is not None:
@@ -655,7 +828,10 @@ class SensorHub:
         """
         cfg = self.config
         v0, v1, v2 = variance[0], variance[1], variance[2]
-        if self._position_lost_since is not None:
+        if self._velocity_dr_variance is not None:  # on a receiver's velocity: its own, smaller growth
+            v0 += self._velocity_dr_variance
+            v1 += self._velocity_dr_variance
+        elif self._position_lost_since is not None:
             grown = cfg.dead_reckoning_drift_mps * (t_s - self._position_lost_since)
             v0 += grown * grown
             v1 += grown * grown
@@ -848,6 +1024,157 @@ class SensorHub:
         self._check_verdict = None
         self.alarms.clear(t_s, "heading.rate_disagreement")
 
+    # ------------------------------------------------------------------ velocity check
+    def _ingest_velocity(self, track: _SensorTrack, t_s: float, course: CourseOverGround) -> None:
+        """A position reference's velocity (SOG/COG) → NED, into its check's integral. The vector sog·(cos, sin)(cog):
+        at a speed near zero the course is noise, and so is its share in the vector. A speed without a course is a
+        zero velocity when the speed is within 3σ of zero, else unusable (skipped: a gap if it lasts)."""
+        check = track.velocity
+        speed = course.speed_mps
+        if check is None or speed is None or not 0.0 <= speed <= _MAX_SPEED_MPS:
+            return
+        if course.course_rad is None:
+            if speed > 3.0 * check.sigma_mps:
+                return
+            v_north = v_east = 0.0
+        else:
+            v_north = speed * math.cos(course.course_rad)
+            v_east = speed * math.sin(course.course_rad)
+        self._velocity_seen = True
+        check.velocity(t_s, v_north, v_east, track.stale_s)
+
+    def _velocity_check(self, t_s: float) -> None:
+        """Each position reference's change over the window against the integral of its own velocity; beyond the
+        limit the reference is rejected; back at its level (against the velocity) for ``velocity_check_return_s``,
+        it is taken back (module docstring, "Velocity check")."""
+        cfg = self.config
+        for track in self._position:
+            check = track.velocity
+            if check is None or check.velocity_t_s is None:
+                continue
+            last = track.last_t_s
+            if t_s - check.velocity_t_s > track.stale_s or last is None or t_s - last > track.stale_s or \
+                    track.disconnected or track.frozen_since_t_s is not None or \
+                    track.state in (SensorState.STALE, SensorState.FROZEN, SensorState.DISCONNECTED):
+                # no velocity (the check is off), or the position is missing or repeated: the window restarts
+                if check.count:
+                    check.reset()
+                if check.rejected:
+                    self._velocity_release(track, t_s)  # (left to the other tests)
+                continue
+            if check.samples == track.samples:
+                continue
+            check.samples = track.samples
+            check.add(last, track.antenna[0], track.antenna[1], self._nominal_sigma(track),
+                      filter_s=cfg.velocity_check_filter_s, window_s=cfg.velocity_check_window_s,
+                      variance_alpha=track.variance_alpha)
+            factor = cfg.velocity_check_sigma_factor
+            if check.rejected:
+                ref_north, ref_east, ref_variance, ref_integral_variance = check.reference
+                f_north, f_east = check.filtered
+                error = math.hypot(f_north - ref_north, f_east - ref_east)
+                sigma = math.sqrt(check.filtered_variance + ref_variance +
+                                  max(check.integral_variances[check.head] - ref_integral_variance, 0.0))
+                limit = max(cfg.velocity_check_min_m, factor * sigma)
+                if error <= 0.5 * limit:
+                    if check.agree_since_t_s is None:
+                        check.agree_since_t_s = t_s
+                    elif t_s - check.agree_since_t_s >= cfg.velocity_check_return_s:
+                        self._velocity_release(track, t_s)
+                else:
+                    check.agree_since_t_s = None
+                continue
+            check.limit = max(cfg.velocity_check_min_m, factor * check.sigma())
+            d_north, d_east = check.disagreement
+            distance = math.hypot(d_north, d_east)
+            if distance > check.limit:
+                self._velocity_verdict(track, check, distance, t_s)
+
+    def _velocity_dead_reckoning(self, t_s: float, predicted: Sequence[float] | None) -> None:
+        """No position reference in use and one rejected by the velocity check with its velocity fresh: the position
+        is dead-reckoned on that velocity, from where it says the receiver is — its level before the disagreement
+        + ∫v dt since, the lever arm taken off —, fed as ŷ + S/(S + σ²_dr)·(p_dr − ŷ) (the Kalman update with
+        R + σ²_dr, as the heading on a rate of turn), σ²_dr the level's and the integrated velocity noise's."""
+        out = self._out
+        self._velocity_dr_variance = None
+        out.position_velocity_source = None
+        out.position_dr_sigma_m = 0.0
+        if self._position_used or predicted is None:
+            return
+        for track in self._position:
+            check = track.velocity
+            if check is None or not check.rejected or check.velocity_t_s is None or \
+                    t_s - check.velocity_t_s > track.stale_s:
+                continue
+            ref_north, ref_east, ref_variance, ref_integral_variance = check.reference
+            dt = t_s - check.velocity_t_s
+            north = ref_north + check.integral_north + check.v_north * dt
+            east = ref_east + check.integral_east + check.v_east * dt
+            arm_x, arm_y = track.config.lever_arm_m
+            if arm_x or arm_y:
+                heading = self._last_heading if self._heading_used else predicted[2]
+                d_north, d_east = lever_arm_ned(arm_x, arm_y, heading)
+                north -= d_north
+                east -= d_east
+            sigma_v = check.sigma_mps
+            variance = ref_variance + max(check.integral_variance - ref_integral_variance, 0.0) + \
+                sigma_v * sigma_v * dt * dt
+            base = self._base_variance
+            s_north, s_east = (base[0], base[1]) if base is not None else (variance, variance)
+            y_n = out.y_n
+            y_n[0] = predicted[0] + s_north / (s_north + variance) * (north - predicted[0]) \
+                if s_north + variance > 0.0 else north
+            y_n[1] = predicted[1] + s_east / (s_east + variance) * (east - predicted[1]) \
+                if s_east + variance > 0.0 else east
+            out.measured = (True, True, out.measured[2])
+            out.position_velocity_source = track.name
+            out.position_dr_sigma_m = math.sqrt(variance)
+            self._velocity_dr_variance = variance
+            return
+
+    def _velocity_verdict(self, track: _SensorTrack, check: _VelocityCheck, distance: float, t_s: float) -> None:
+        """``track``'s position moved otherwise than its own velocity says: the position is rejected (the velocity
+        is the Doppler's, independent of what moves a position slowly: multipath, a correction), its level before
+        the disagreement kept for its return."""
+        tail = check.tail
+        check.rejected = True
+        check.agree_since_t_s = None
+        check.reference = (check.north[tail], check.east[tail], check.variances[tail],
+                           check.integral_variances[tail])
+        d_north, d_east = check.disagreement
+        check.detail = track.detail = (f"velocity check: position disagrees with its own velocity by {distance:.2f} m "
+                                       f"in {check.span_s:.1f} s (limit {check.limit:.2f} m)")
+        kind = "the only position reference" if len(self._position) == 1 else "position reference"
+        self._velocity_alarm_text(t_s, f"{track.name} ({kind}): position moved {d_north:+.2f} m N, {d_east:+.2f} m E "
+                                       f"more than its velocity (SOG/COG) integrates to in {check.span_s:.1f} s "
+                                       f"(limit {check.limit:.2f} m); {track.name} rejected")
+
+    def _velocity_release(self, track: _SensorTrack, t_s: float) -> None:
+        """The velocity check's rejection of ``track`` ends; the window restarts (the disagreement is in it)."""
+        check = track.velocity
+        assert check is not None
+        check.rejected = False
+        check.detail = ""
+        check.agree_since_t_s = None
+        check.reset()
+        self._velocity_alarm_text(t_s, "")
+
+    def _velocity_alarm_text(self, t_s: float, text: str) -> None:
+        """``position.velocity_disagreement`` raised with ``text`` (a new verdict), kept while a reference is
+        rejected by the check, cleared when none is."""
+        rejected = [t.name for t in self._position if t.velocity is not None and t.velocity.rejected]
+        if not rejected:
+            if self._velocity_alarm:
+                self._velocity_alarm = ""
+                self.alarms.clear(t_s, "position.velocity_disagreement")
+            return
+        if text:
+            others = [name for name in rejected if not text.startswith(name)]
+            if others:
+                text += f" (also rejected: {', '.join(others)})"
+            self._velocity_alarm = text
+            self.alarms.raise_(t_s, "position.velocity_disagreement", Severity.ALARM, text)
+
     def _anchor_dead_reckoning(self, t_s: float, predicted: Sequence[float] | None) -> None:
         """A fresh fused heading: the dead reckoning starts again from it, combined with the estimator's prediction
         (prior variance P = S − R, the measurement's R = 1/Σw): one gyro sample's noise (0.05°) would otherwise
@@ -977,6 +1304,7 @@ class SensorHub:
         if datum is None:
             datum = self.datum = LocalFrame(fix.lat_deg, fix.lon_deg, 0.0)
         north, east, _ = datum.to_ned(fix.lat_deg, fix.lon_deg, 0.0)
+        track.antenna = (north, east)  # (the velocity check compares the antenna's motion with its velocity)
         arm_x, arm_y = track.config.lever_arm_m
         if arm_x or arm_y:
             heading = self._last_heading if self._heading_used else (predicted[2] if predicted else 0.0)
@@ -1107,7 +1435,7 @@ class SensorHub:
         # (nor one the rate check rejected: its heading drifts, however far it is from the estimate)
         live = [t for t in tracks if t.last_t_s is not None and not t.disconnected and
                 t_s - t.last_t_s <= t.stale_s and t.state is not SensorState.FROZEN and
-                (t.check is None or not t.check.rejected)]
+                (t.check is None or not t.check.rejected) and (t.velocity is None or not t.velocity.rejected)]
         accepted = [t for t in live if t.name in self._accept_requested and t.rejecting_since_t_s is not None]
         why = "all references disagreed with the estimate; estimator re-initialised on them"
         if accepted:  # the operator's word (accept_reference): at once
@@ -1169,6 +1497,8 @@ class SensorHub:
         track = self._tracks.get(name)
         if track is None:
             return False
+        if track.velocity is not None and track.velocity.rejected:  # the operator's word over the velocity check
+            self._velocity_release(track, self._last_update_t_s or 0.0)
         self._accept_requested.add(name)
         self._rejecting = True  # (the search for a reset runs at the next update)
         return True
@@ -1188,7 +1518,9 @@ class SensorHub:
             elif track.frozen_since_t_s is not None and t_s - track.frozen_since_t_s >= freeze_limit:
                 state = SensorState.FROZEN
             elif (track.rejecting_since_t_s is not None and t_s - track.rejecting_since_t_s >= reject_persist) or \
-                    (track.check is not None and track.check.rejected):  # (or its heading rate disagrees with the ROT)
+                    (track.check is not None and track.check.rejected) or \
+                    (track.velocity is not None and track.velocity.rejected):
+                # (or its heading rate disagrees with the ROT, or its position with its own velocity)
                 state = SensorState.REJECTED
             elif track.state is SensorState.ISOLATED and track.median_fail_since_t_s is not None:
                 state = SensorState.ISOLATED
@@ -1452,7 +1784,9 @@ class SensorHub:
         for track in self._all:
             age = None if track.last_t_s is None else round(t_s - track.last_t_s, 3)
             check = track.check
-            detail = check.detail if check is not None and check.rejected else track.detail
+            velocity = track.velocity
+            detail = check.detail if check is not None and check.rejected else \
+                velocity.detail if velocity is not None and velocity.rejected else track.detail
             rows.append({"name": track.name, "kind": track.config.kind.value, "state": track.state.value,
                          "age_s": age, "weight": round(track.weight, 4), "sigma": self._sigma(track),
                          "samples": track.samples, "rejected": track.rejected_samples, "detail": detail})

@@ -11,12 +11,14 @@ identical measurements.
 Defaults, chosen so that one physical quantity is not counted twice:
 
 * NMEA 0183 position sensors use GGA, GNS (and GST statistics); RMC and GLL only when listed in
-  ``sentences`` (a receiver sending GGA and RMC or GLL for the same epoch would otherwise double it);
+  ``sentences`` (a receiver sending GGA and RMC or GLL for the same epoch would otherwise double it); the
+  receiver's velocity (course and speed over ground) from VTG and RMC, whatever ``sentences`` lists (a velocity
+  sent twice for one epoch is the same sample twice: the hub's velocity check integrates over time, not samples);
   heading sensors use HDT, THS (and ROT);
-* NMEA 2000: every position (129025, 129029) and heading (127250) PGN from the configured source
-  address and/or device NAME (or any source when none is configured);
-* MAVLink: GPS_RAW_INT for position (GLOBAL_POSITION_INT is the autopilot's fused estimate, not a
-  reference), ATTITUDE for heading and rate of turn.
+* NMEA 2000: every position (129025, 129029, and 129026 COG & SOG) and heading (127250) PGN from the configured
+  source address and/or device NAME (or any source when none is configured);
+* MAVLink: GPS_RAW_INT for position and its ``vel``/``cog`` (GLOBAL_POSITION_INT is the autopilot's fused
+  estimate, not a reference), ATTITUDE for heading and rate of turn.
 
 A rate of turn (NMEA 0183 ROT, NMEA 2000 127251, MAVLink ATTITUDE ``yawspeed``) goes to a ``rate_of_turn``
 sensor (a rate gyro independent of the gyrocompasses) whose filters match it, else to a heading sensor's
@@ -30,11 +32,12 @@ from collections.abc import Sequence
 
 from dpcontrol.runtime.config import SensorRoute, TransportConfig
 from dpcontrol.runtime.hub import SensorKind
-from interfaces.messages import Heading, PositionErrorStats, PositionFix, RateOfTurn, SensorMessage
+from interfaces.messages import CourseOverGround, Heading, PositionErrorStats, PositionFix, RateOfTurn, SensorMessage
 
 NMEA_POSITION_DEFAULT = ("GGA", "GNS", "GST")
 NMEA_HEADING_DEFAULT = ("HDT", "THS", "ROT")
 NMEA_RATE_DEFAULT = ("ROT",)
+NMEA_VELOCITY_SENTENCES = ("VTG", "RMC")  # a position sensor's course and speed over ground
 MAVLINK_POSITION_MESSAGES = ("GPS_RAW_INT",)
 MAVLINK_HEADING_MESSAGES = ("ATTITUDE",)
 _SYSTEM_SEPARATOR = "#"
@@ -62,7 +65,7 @@ def link_alarm_code(source: str) -> str:
 
 def message_kind(message: SensorMessage) -> SensorKind | None:
     """Which kind of sensor a message feeds (None: not used by the hub)."""
-    if isinstance(message, PositionFix | PositionErrorStats):
+    if isinstance(message, PositionFix | PositionErrorStats | CourseOverGround):
         return SensorKind.POSITION
     if isinstance(message, Heading | RateOfTurn):
         return SensorKind.HEADING
@@ -121,9 +124,12 @@ class SensorRouter:
             if route_kind is not kind and not (route_kind is SensorKind.RATE and kind is SensorKind.HEADING
                                                and isinstance(message, RateOfTurn)):
                 continue
-            allowed = route.sentences or (NMEA_POSITION_DEFAULT if route_kind is SensorKind.POSITION
-                                          else NMEA_RATE_DEFAULT if route_kind is SensorKind.RATE
-                                          else NMEA_HEADING_DEFAULT)
+            if isinstance(message, CourseOverGround):
+                allowed: tuple[str, ...] = NMEA_VELOCITY_SENTENCES
+            else:
+                allowed = route.sentences or (NMEA_POSITION_DEFAULT if route_kind is SensorKind.POSITION
+                                              else NMEA_RATE_DEFAULT if route_kind is SensorKind.RATE
+                                              else NMEA_HEADING_DEFAULT)
             if sentence not in allowed and not (sentence == "GST" and kind is SensorKind.POSITION):
                 continue
             if route.talker is not None and route.talker != talker:

@@ -124,6 +124,16 @@ def _heading_dead_reckoning_text(hub: HubOutput) -> str:
             f"{math.degrees(hub.heading_dr_sigma_rad):.2f} deg) for {hub.heading_lost_s:.1f} s")
 
 
+def _position_dead_reckoning_text(hub: HubOutput) -> str:
+    """The ``position.dead_reckoning`` alarm's text: what carries the position (a receiver's own velocity, when the
+    velocity check rejected its position, with the dead-reckoned position's 1-σ; else the model) and for how long."""
+    source = hub.position_velocity_source
+    if source is None:
+        return f"no position reference: dead reckoning for {hub.position_lost_s:.1f} s"
+    return (f"no position reference: dead reckoning on the velocity of {source} (1-sigma "
+            f"{hub.position_dr_sigma_m:.2f} m) for {hub.position_lost_s:.1f} s")
+
+
 @contextlib.contextmanager
 def _section_of_config(section: str, config: DaemonConfig) -> Iterator[None]:
     """Turn a ValueError raised while building from ``section`` into a :class:`ConfigError` naming it."""
@@ -637,8 +647,7 @@ class DpController:
         # than the rest of the mode logic — and an alarm is cleared only if this controller raised it)
         dead_reckoning = self._estimator_ready and not hub.position_available
         if dead_reckoning and self.mode is Mode.AUTO_POSITION:
-            self.alarms.raise_(t_s, "position.dead_reckoning", Severity.ALARM,
-                               f"no position reference: dead reckoning for {hub.position_lost_s:.1f} s")
+            self.alarms.raise_(t_s, "position.dead_reckoning", Severity.ALARM, _position_dead_reckoning_text(hub))
             self._dead_reckoning_alarm = True
         elif self._dead_reckoning_alarm:
             self.alarms.clear(t_s, "position.dead_reckoning")

@@ -2,7 +2,7 @@
 
 Codec: :class:`Nmea0183Decoder` (streaming ``feed(bytes)``), :func:`decode_sentence`, and the
 encoders the plant emulator sends with (``encode_gga``, ``encode_gns``, ``encode_rmc``,
-``encode_gst``, ``encode_hdt``, ``encode_ths``, ``encode_rot``, ``encode_mwv``).
+``encode_vtg``, ``encode_gst``, ``encode_hdt``, ``encode_ths``, ``encode_rot``, ``encode_mwv``).
 Transport: :class:`SerialReader` (background thread, reconnects), :class:`SerialWriter`,
 :class:`PtyPair` (the pseudo-terminal loopback twin).
 """
@@ -26,6 +26,7 @@ from interfaces.nmea0183.codec import (
     encode_rmc_no_fix,
     encode_rot,
     encode_ths,
+    encode_vtg,
 )
 from interfaces.nmea0183.transport import LinkState, PtyPair, ReceivedLine, SerialReader, SerialWriter
 
@@ -53,4 +54,5 @@ __all__ = [
     "encode_rmc_no_fix",
     "encode_rot",
     "encode_ths",
+    "encode_vtg",
 ]

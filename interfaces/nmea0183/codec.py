@@ -34,7 +34,7 @@ Every message a sentence decodes to is checked against the physical limits of
 
 Counters (``Nmea0183Decoder.counters``) keep ``frames == ok + ignored + rejected`` at all times:
 ``ok`` frames produced at least one message, ``ignored`` frames are well-formed sentences with a
-valid checksum of a type we do not use (GSV, GSA, VTG, proprietary, AIS ...), and each rejected
+valid checksum of a type we do not use (GSV, GSA, proprietary, AIS ...), and each rejected
 frame adds one to ``rejected`` and to ``rejected.<reason>``.
 
 Encoders (``encode_gga`` ...) are what the plant emulator sends. Latitude and longitude are
@@ -321,6 +321,35 @@ def _rmc(data: list[str], strict: bool) -> tuple[SensorMessage, ...]:
                                   None if speed_kn is None else speed_kn * KNOT_MPS))
 
 
+def _vtg(data: list[str], strict: bool) -> tuple[SensorMessage, ...]:
+    """VTG: course true [deg], T, course magnetic, M, SOG [kn], N, SOG [km/h], K, mode (NMEA 2.3+).
+
+    The FAA mode is read first (``N`` no fix → ``invalid_fix``; manual or simulated → ``invalid_fix`` when
+    strict); the speed in knots is taken, else the one in km/h; the magnetic course is not used (no variation
+    here). A course without its ``T`` (the pre-2.0 form without unit letters) is ``bad_field``.
+    """
+    f = _fields(data, 9)
+    if f[8]:
+        _faa_quality(f[8], "VTG", strict)
+    if f[0] and f[1] != "T":
+        raise _FieldError("bad_field", f"VTG course unit {f[1]!r} is not T")
+    course_deg = _angle_deg(f[0], "VTG course")
+    speed = _number(f[4], "VTG speed", signed=False)
+    if speed is not None:
+        if f[5] != "N":
+            raise _FieldError("bad_field", f"VTG speed unit {f[5]!r} is not N")
+        speed *= KNOT_MPS
+    else:
+        speed = _number(f[6], "VTG speed", signed=False)
+        if speed is not None:
+            if f[7] != "K":
+                raise _FieldError("bad_field", f"VTG speed unit {f[7]!r} is not K")
+            speed /= 3.6
+    if speed is None and course_deg is None:
+        raise _FieldError("no_data", "VTG carries neither a true course nor a speed")
+    return (CourseOverGround(None if course_deg is None else math.radians(course_deg), speed),)
+
+
 def _gns(data: list[str], strict: bool) -> tuple[SensorMessage, ...]:
     """GNS: time, lat, N/S, lon, E/W, mode (one char per constellation), satellites, HDOP, altitude, ..."""
     f = _fields(data, 9)
@@ -429,7 +458,8 @@ def _mwv(data: list[str], strict: bool) -> tuple[SensorMessage, ...]:
 
 
 _DECODERS: dict[str, Callable[[list[str], bool], tuple[SensorMessage, ...]]] = {
-    "GGA": _gga, "RMC": _rmc, "GNS": _gns, "GLL": _gll, "GST": _gst, "HDT": _hdt, "THS": _ths, "ROT": _rot, "MWV": _mwv,
+    "GGA": _gga, "RMC": _rmc, "VTG": _vtg, "GNS": _gns, "GLL": _gll, "GST": _gst, "HDT": _hdt, "THS": _ths,
+    "ROT": _rot, "MWV": _mwv,
 }
 DECODED_SENTENCES = tuple(_DECODERS)
 """Sentence types that become messages; every other well-formed sentence is counted as ignored."""
@@ -910,6 +940,20 @@ def encode_rmc(fix: PositionFix, course: CourseOverGround | None = None, talker:
 def encode_rmc_no_fix(talker: str = "GP", utc_time_s: float | None = None, date_ddmmyy: str = "") -> bytes:
     """RMC of a receiver without a fix (status V, mode N): for fault injection."""
     return _render(talker, "RMC", [_format_time(utc_time_s), "V", "", "", "", "", "", "", date_ddmmyy, "", "", "N"])
+
+
+def encode_vtg(course: CourseOverGround, talker: str = "GP", mode: str = "D") -> bytes:
+    """VTG: true course in degrees with 2 decimals (empty when None), speed in knots and km/h with 3 decimals
+    (0.26 mm/s), FAA ``mode`` (``D`` differential, ``A`` autonomous ...; ``N`` for fault injection)."""
+    if mode not in _FAA_QUALITY and mode != "N":
+        raise ValueError(f"VTG mode {mode!r} is not an FAA mode indicator")
+    course_text = "" if course.course_rad is None else _format_direction(course.course_rad, 2)
+    knots = kmh = ""
+    if course.speed_mps is not None:
+        speed = _finite(course.speed_mps, "speed_mps", 0.0, 999.99 * KNOT_MPS)
+        knots = format(speed / KNOT_MPS, ".3f")
+        kmh = format(speed * 3.6, ".3f")
+    return _render(talker, "VTG", [course_text, "T", "", "M", knots, "N", kmh, "K", mode])
 
 
 def encode_gst(stats: PositionErrorStats, talker: str = "GP", utc_time_s: float | None = None) -> bytes:

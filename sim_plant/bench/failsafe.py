@@ -53,17 +53,24 @@ VESSELS: dict[str, dict[str, Any]] = {
                        # the hub's distances and detection times Froude-scaled (length 1/70, time 1/√70): the
                        # 4 m jump floor and 3 m median limit of a ship are 57 mm and 43 mm on the model, its 5 s
                        # freeze window 0.6 s, its 10 s / 180 s rejection times 1.2 s / 21.5 s, its rate check's 30 s
-                       # window and 10 s return 3.6 s / 1.2 s
+                       # window and 10 s return 3.6 s / 1.2 s, its velocity check's 1 m floor 14 mm, 30 s window
+                       # 3.6 s, 2 s low-pass 0.24 s and 5 s return 0.6 s
                        "hub": {"jump_min_m": 4.0 / SCALE_CS2, "median_limit_m": 3.0 / SCALE_CS2,
                                "rot_check_window_s": 30.0 / math.sqrt(SCALE_CS2),
                                "rot_check_return_s": 10.0 / math.sqrt(SCALE_CS2),
+                               "velocity_check_min_m": 1.0 / SCALE_CS2,
+                               "velocity_check_window_s": 30.0 / math.sqrt(SCALE_CS2),
+                               "velocity_check_filter_s": 2.0 / math.sqrt(SCALE_CS2),
+                               "velocity_check_return_s": 5.0 / math.sqrt(SCALE_CS2),
                                "freeze_window_s": 5.0 / math.sqrt(SCALE_CS2),
                                "reject_persist_s": 10.0 / math.sqrt(SCALE_CS2),
                                "single_reference_accept_s": 180.0 / math.sqrt(SCALE_CS2)},
                        "deviation": {"position_warning_m": 0.2, "position_alarm_m": 0.3}},
         "sea": {"hs_m": 0.04, "omega_peak_rad_s": 1.2},
         "current_mps": 0.03, "wind_mps": 0.0,
-        "gnss": {"rate_hz": 10, "noise_m": 0.01}, "gyro": {"rate_hz": 10, "noise_deg": 0.0057},
+        # (the receiver's velocity noise Froude-scaled with its position noise: 0.02 m/s full scale)
+        "gnss": {"rate_hz": 10, "noise_m": 0.01, "velocity_noise_mps": 0.02 / math.sqrt(SCALE_CS2)},
+        "gyro": {"rate_hz": 10, "noise_deg": 0.0057},
         # the same rate gyro as the ship's (a device is not scaled)
         "rot": {"rate_hz": 10, "noise_degps": 0.01, "bias_degps": 0.03},
         "position_bound_m": 3.0 / SCALE_CS2, "heading_bound_deg": 3.0, "jump_m": 10.0 / SCALE_CS2,

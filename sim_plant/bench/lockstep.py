@@ -99,7 +99,7 @@ def controller_mapping(scenario: Scenario, overrides: Mapping[str, Any] | None =
         entry: dict[str, Any] = {"name": spec.name, "transport": transport, "rate_hz": spec.rate_hz}
         if isinstance(spec, GnssSpec):
             entry.update(kind="position", sigma_m=max(math.hypot(spec.noise_m, spec.markov_m), 1e-3),
-                         lever_arm_m=list(spec.lever_arm_m))
+                         lever_arm_m=list(spec.lever_arm_m), velocity_sigma_mps=max(spec.velocity_noise_mps, 1e-3))
         elif isinstance(spec, RotSpec):
             # (its own talker, TI: on a port shared with a gyro the gyro's HEROT stays the gyro's)
             entry.update(kind="rate_of_turn", sigma_degps=max(math.degrees(spec.noise_radps), 1e-4))

@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import re
 import threading
 from dataclasses import dataclass, field
@@ -46,7 +47,7 @@ from pathlib import Path
 
 import pytest
 
-from interfaces.messages import PositionFix
+from interfaces.messages import CourseOverGround, PositionFix
 from interfaces.nmea0183 import (
     DEFAULT_MAX_SENTENCE_CHARS,
     NMEA_MAX_SENTENCE_CHARS,
@@ -428,3 +429,75 @@ def test_binary_protocols_give_no_fix_and_no_crash(replay: Replay) -> None:
         assert [m for f in frames for m in f.messages] == [], path.name
         assert all(f.rejected is not None or f.sentence for f in frames)
     assert replay.alive_at_end
+
+
+# ----------------------------------------------------------------------------------------------
+# VTG (course and speed over ground): against gpsd's TPV ``speed`` and ``track``
+
+_VTG_SPEED_TOLERANCE_MPS = 6e-4  # gpsd prints the speed with 3 decimals (m/s)
+_VTG_TRACK_TOLERANCE_DEG = 6e-3  # ... the track with 4; VTG has at most 3 decimals
+MIN_VTG_COMPARED = 1500  # VTG epochs gpsd reported a speed for (1590 at the time of writing)
+
+
+def _epoch_of(chk: Chk, index: int) -> float | None:
+    """Time of day [s] of the epoch the sentence at ``index`` belongs to: VTG carries no time, so the time of the
+    last position sentence before it (GGA, GNS, RMC, GLL: receivers send VTG within the epoch's burst)."""
+    for kind, item in reversed(chk.items[:index]):
+        if kind == "S" and isinstance(item, bytes):
+            key = position_key(item)
+            if key is not None:
+                if not isinstance(key[0], float):
+                    return None
+                hhmmss = key[0]  # (the time field as a number: hhmmss.ss)
+                return (hhmmss // 10000) * 3600.0 + (hhmmss // 100 % 100) * 60.0 + hhmmss % 100.0
+    return None
+
+
+def test_vtg_course_and_speed_equal_what_gpsd_reported() -> None:
+    """Every VTG we decode (course true, speed) equals gpsd's TPV ``track`` and ``speed`` of the same epoch (the first
+    TPV with a fix after the VTG whose time is the epoch's — gpsd reports at the end of the cycle — before the next
+    VTG); epochs gpsd reported no speed for are not compared. Rejected VTGs are the receivers' own ``N`` (no fix)."""
+    compared = 0
+    mismatches = []
+    rejected: set[str] = set()
+    for path in sorted(NMEA_DIR.glob("*.log")):
+        frames = [f for f in decode_directly(path) if f.sentence[2:] == "VTG"]
+        if not frames:
+            continue
+        chk = Chk.read(path.with_name(path.name + ".chk"))
+        items = chk.items
+        start = 0
+        for frame in frames:
+            if frame.rejected is not None:
+                rejected.add(frame.rejected.reason)
+                continue
+            (course,) = frame.messages
+            assert isinstance(course, CourseOverGround)
+            index = next((i for i in range(start, len(items)) if items[i] == ("S", frame.raw)), None)
+            if index is None:
+                continue
+            start = index + 1
+            epoch = _epoch_of(chk, index)
+            if epoch is None:
+                continue
+            report = None
+            for kind, item in items[index + 1:]:
+                if kind == "S" and isinstance(item, bytes) and item[3:6] == b"VTG":
+                    break
+                if kind == "T" and isinstance(item, dict) and item.get("mode", 0) >= 2 and "time" in item and \
+                        abs(seconds_of_day(item["time"]) - epoch) < 1e-3:
+                    report = item
+                    break
+            if report is None or "speed" not in report:
+                continue
+            compared += 1
+            speed_error = 0.0 if course.speed_mps is None else abs(report["speed"] - course.speed_mps)
+            track_error = 0.0
+            if course.course_rad is not None and "track" in report:
+                track_error = abs((math.degrees(course.course_rad) - report["track"] + 180.0) % 360.0 - 180.0)
+            if speed_error > _VTG_SPEED_TOLERANCE_MPS or track_error > _VTG_TRACK_TOLERANCE_DEG:
+                mismatches.append((path.name, frame.raw, report.get("speed"), report.get("track")))
+    assert not mismatches, mismatches[:10]
+    assert compared >= MIN_VTG_COMPARED
+    # a VTG with mode N (no fix) is invalid_fix; a few logs cut a line short (no checksum)
+    assert rejected <= {"invalid_fix", "no_checksum"}, rejected

@@ -104,7 +104,7 @@ def test_reads_the_keys_it_needs_and_ignores_the_rest() -> None:
     ({"sensors.0.kind": "gnss"}, "sensors[0].kind"),
     ({"sensors.0.talker": "G"}, "sensors[0].talker"),
     ({"sensors.2.talker": "GP"}, "sensors[2].talker"),
-    ({"sensors.0.sentences": ["GGA", "VTG"]}, "sensors[0].sentences[1]"),
+    ({"sensors.0.sentences": ["GGA", "GSA"]}, "sensors[0].sentences[1]"),
     ({"sensors.2.sentences": ["GGA"]}, "sensors[2].sentences"),
     ({"sensors.2.source_address": 252}, "sensors[2].source_address"),
     ({"sensors.0.source_address": 3}, "sensors[0].source_address"),

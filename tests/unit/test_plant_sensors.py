@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from dpbase.geodesy import LocalFrame
-from interfaces.messages import FixQuality, Heading, PositionErrorStats, PositionFix, RateOfTurn
+from interfaces.messages import CourseOverGround, FixQuality, Heading, PositionErrorStats, PositionFix, RateOfTurn
 from sim_plant.faults import Fault
 from sim_plant.sensors import GnssSensor, GnssSpec, GyroSensor, GyroSpec, InvalidFix
 
@@ -92,7 +92,7 @@ def test_gnss_faults() -> None:
     ]
     sensor = _gnss(faults, gst=False)
     samples = _run_gnss(sensor, 70.0, north=lambda t: t, east=lambda t: 0.0)
-    by_time = {s.t_s: s for s in samples}
+    by_time = {s.t_s: s for s in samples if not isinstance(s.message, CourseOverGround)}
 
     def pos(t):
         return _ned(by_time[t])
@@ -123,7 +123,7 @@ def test_gnss_noise_factor_scales_the_noise() -> None:
 
 
 def test_sample_times_are_exact_and_utc_wraps_at_midnight() -> None:
-    spec = GnssSpec("g", rate_hz=3.0, noise_m=0.0, offset_s=0.1, gst=False)
+    spec = GnssSpec("g", rate_hz=3.0, noise_m=0.0, offset_s=0.1, gst=False, velocity=False)
     sensor = GnssSensor(spec, FRAME, np.random.default_rng(0), (), utc_start_s=86399.0)
     samples = _run_gnss(sensor, 10.0)
     times = [s.t_s for s in samples]
@@ -191,3 +191,63 @@ def test_gyro_faults() -> None:
     invalid = [s for s in samples if not s.valid]
     assert len(invalid) == 20 and invalid[0].message.kind == "heading"
     assert by_time[57.0].heading_rad == pytest.approx(0.57)
+
+
+def _velocities(samples) -> dict[float, tuple[float, float]]:
+    """(north, east) velocity [m/s] of each CourseOverGround, by time."""
+    return {s.t_s: (s.message.speed_mps * math.cos(s.message.course_rad),
+                    s.message.speed_mps * math.sin(s.message.course_rad))
+            for s in samples if isinstance(s.message, CourseOverGround)}
+
+
+def test_gnss_velocity_is_the_antennas_true_velocity_over_ground() -> None:
+    """SOG/COG: the antenna's velocity at the epoch, the lever arm's r × l included; none with the first fix."""
+    sensor = _gnss(lever_arm_m=(10.0, 0.0), velocity_noise_mps=0.0, gst=False)
+    out = []
+    while sensor.next_time_s <= 20.0 + 1e-9:  # 0.5 m/s north, turning at 0.01 rad/s from north
+        t = sensor.next_time_s
+        out.extend(sensor.sample(t, 0.5 * t, 0.0, 0.01 * t))
+    velocity = _velocities(out)
+    assert 0.0 not in velocity and len(velocity) == 100
+    for t, (v_n, v_e) in velocity.items():
+        if t < 0.3:  # (the second fix: the mean over the first epoch)
+            continue
+        psi = 0.01 * t
+        assert v_n == pytest.approx(0.5 - 10.0 * 0.01 * math.sin(psi), abs=1e-4)
+        assert v_e == pytest.approx(10.0 * 0.01 * math.cos(psi), abs=1e-4)
+
+
+def test_gnss_velocity_ignores_drift_and_jump_freezes_with_the_position() -> None:
+    """A drift or a jump moves the position only (the Doppler velocity does not see them); a frozen receiver
+    repeats both; invalid and dropped-out samples send none."""
+    faults = [Fault(10.0, "gnss_drift", "gnss1", 10.0, rate_mps=0.5, direction_rad=1.0),
+              Fault(25.0, "gnss_jump", "gnss1", 5.0, offset_m=7.0),
+              Fault(35.0, "gnss_freeze", "gnss1", 5.0),
+              Fault(45.0, "gnss_dropout", "gnss1", 5.0),
+              Fault(55.0, "gnss_invalid", "gnss1", 5.0)]
+    sensor = _gnss(faults, velocity_noise_mps=0.0, gst=False)
+    velocity = _velocities(_run_gnss(sensor, 70.0, north=lambda t: 0.3 * (t - 5.0) ** 2 / 10.0 if t > 5.0 else 0.0,
+                                     east=lambda t: -0.1 * t))
+    before = velocity[max(t for t in velocity if t < 35.0)]
+    for t, v in velocity.items():
+        if 35.0 <= t < 40.0:
+            assert v == before  # frozen: the last one repeated
+        elif t > 5.5:  # the true velocity, whatever the position's faults (after the drop-out too)
+            assert v == pytest.approx((0.3 * (t - 5.0) / 5.0, -0.1), abs=1e-6)
+    assert before[0] == pytest.approx(0.3 * (34.8 - 5.0) / 5.0)
+    assert not [t for t in velocity if 45.0 <= t < 50.0 or 55.0 <= t < 60.0]
+
+
+def test_gnss_velocity_noise_and_its_own_stream() -> None:
+    """White noise of the configured σ per axis (× the gnss_noise factor), drawn from a stream of its own: the
+    positions are the same with the velocity on or off."""
+    sensor = _gnss(noise_m=0.3, velocity_noise_mps=0.05, gst=False)
+    samples = _run_gnss(sensor, 600.0)
+    v = np.array(list(_velocities(samples).values()))
+    np.testing.assert_allclose(v.std(axis=0), 0.05, rtol=0.06)
+    assert np.all(np.abs(v.mean(axis=0)) < 4.0 * 0.05 / math.sqrt(len(v)))
+    without = _run_gnss(_gnss(noise_m=0.3, velocity=False, gst=False), 600.0)
+    assert _fixes(samples) == _fixes(without) and not _velocities(without)
+    noisy = _gnss([Fault(0.0, "gnss_noise", "gnss1", None, factor=3.0)], velocity_noise_mps=0.05, gst=False)
+    v = np.array(list(_velocities(_run_gnss(noisy, 300.0)).values()))
+    np.testing.assert_allclose(v.std(axis=0), 0.15, rtol=0.08)
