@@ -278,6 +278,11 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
               rd: np.ndarray, rdd: np.ndarray, mask: int, const: np.ndarray, state: np.ndarray, out: np.ndarray) -> int:
     """One MRAC period: control law (17)–(18), adaptive law (21) and the exact advance of model (15).
 
+    The law per DOF i is ``τ_i = â₂ᵢ z_i + â₁ᵢ ν_i + h_i − b̂_i − τ̂_wind,i`` with z of eq. (17) on the reference's
+    body-frame acceleration and ``h`` the known coupling of the nominal model (``C_COUPLING``: the rotation
+    term in z, :func:`_rotate_acceleration`; the rest in :func:`_known_coupling`; h = 0 and z on Rᵀÿ_M for
+    seed 003's diagonal law).
+
     Parameters
     ----------
     dt : float

@@ -801,7 +801,9 @@ class MracController:
         return dict(zip(PARAMETER_NAMES, self._state[S_A2:S_A1 + 1].ravel().tolist(), strict=True))
 
     def equivalent_pd_gains(self) -> tuple[np.ndarray, np.ndarray]:
-        """Seed 003 eq. (25): ``P = â₂β₀``, ``D = â₂β₁`` per DOF (acting on ``e`` and ``ė``)."""
+        """Seed 003 eq. (25): ``P = â₂β₀``, ``D = â₂β₁`` per DOF (acting on ``e`` and ``ė``) [N/m, N·s/m; N·m/rad,
+        N·m·s/rad]. With the ``inertia`` coupling the law's PD is the matrix ``M̂β₀``, ``M̂β₁`` with
+        ``M̂ = diag(â₂) + M_off`` (:attr:`MracConfig.mass_matrix` off the diagonal); these are its diagonal."""
         a2 = self._state[S_A2].tolist()
         return (np.array([a * b for a, b in zip(a2, self._beta0, strict=True)]),
                 np.array([a * b for a, b in zip(a2, self._beta1, strict=True)]))
