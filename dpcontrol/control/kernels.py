@@ -26,7 +26,10 @@ surge, sway, yaw along the last axis; the PID's layout is given with its constan
   [m, m, rad], ``C_ACCEL``/``C_VELOCITY`` the gating thresholds, ``C_A2_LO``/``C_A2_HI``/``C_A1_LO``/
   ``C_A1_HI`` the projection bounds, ``C_A2_NOMINAL``/``C_A1_NOMINAL`` the nominal parameters,
   ``C_OMEGA`` ω_M [rad/s] and ``C_ZETA`` ζ of eq. (15), ``C_FLAGS`` = (σ [1/s], adapt,
-  reference regressor) (1.0 = true), ``C_ENTRY_REST`` how long the reference model must have rested
+  reference regressor) (1.0 = true), ``C_MASS`` (3 rows) the nominal M [kg, kg·m, kg·m²],
+  ``C_DAMPING`` (3 rows) the nominal D with a zero diagonal [N·s/m, N·s, N·m·s/rad], ``C_COUPLING`` =
+  (``COUPLE_*`` bits, κ of the damping bound (0: none), unused), ``C_DRAG`` the quadratic damping
+  [N·s²/m², N·s²/m², N·m·s²], ``C_ENTRY_REST`` how long the reference model must have rested
   after an entry into DP before anything is learnt [s] (0: no wait) and ``C_GUIDED`` = (1.0: y_M is the
   guidance's reference itself, 0.0: the second-order model (15) driven by it, unused, unused);
 * ``state`` (``S_ROWS``, 3): ``S_Y_M``/``S_YD_M`` the reference model y_M, ẏ_M in NED [m, rad; m/s,
@@ -46,13 +49,19 @@ import math
 import numpy as np
 
 from dpbase.frames import ssa_compiled as ssa
-from dpbase.jit import UniTuple, b1, f8, f8_1d, f8_2d, i8, kernel
+from dpbase.jit import UniTuple, b1, f8, f8_1d, f8_2d, i8, kernel, void
 
 C_BETA0, C_BETA1, C_G12, C_G_RATIO, C_GAMMA_M, C_GAMMA_C, C_DEAD_ZONE, C_ACCEL, C_VELOCITY = range(9)
 C_A2_LO, C_A2_HI, C_A1_LO, C_A1_HI, C_A2_NOMINAL, C_A1_NOMINAL, C_OMEGA, C_ZETA, C_FLAGS = range(9, 18)
 C_ENTRY_REST = 18
 C_GUIDED = 19
-C_ROWS = 20
+C_MASS = 20  # three rows: the nominal M (3×3) of the known coupling terms
+C_DAMPING = 23  # three rows: the nominal D with its diagonal zeroed (the off-diagonal damping)
+C_COUPLING = 26  # (COUPLE_* bit mask, κ of the damping bound, unused)
+C_DRAG = 27  # the quadratic damping coefficients of the optional drag term [N·s²/m², N·s²/m², N·m·s²]
+C_ROWS = 28
+#: ``C_COUPLING[0]`` bits: which known terms of the nominal model enter the law (see :func:`_known_coupling`)
+COUPLE_INERTIA, COUPLE_ROTATION, COUPLE_CORIOLIS, COUPLE_DAMPING, COUPLE_DRAG = 1, 2, 4, 8, 16
 S_Y_M, S_YD_M, S_A2, S_A1, S_COMMAND, S_ACHIEVED, S_FLAGS, S_REST = range(8)
 S_ROWS = 8
 OUT_TAU, OUT_ERROR, OUT_VELOCITY_ERROR, OUT_PARAMETERS = 0, 3, 6, 9
@@ -185,10 +194,94 @@ def _clamp(x: float, lo: float, hi: float) -> float:
     return hi if hi < y else y
 
 
+@kernel(f8(f8_2d, i8, f8))
+def damping_ceiling(const: np.ndarray, i: int, a2: float) -> float:
+    """The upper projection bound of â₁ in DOF ``i`` for the mass estimate ``a2`` [N·s/m, N·s/m, N·m·s/rad].
+
+    The frozen loop of seed 003 eq. (23), ``m ÿ + (c + â₂β₁ − â₁) ẏ + â₂β₀ y = (â₂/m_M) u_c``, is stable only
+    while ``c + â₂β₁ − â₁ > 0``. Where â₁ adapts (Γ₂₂ > 0) its bound is therefore
+    ``min(ĉ_max, ĉ_min + κ β₁ â₂)`` with ``ĉ_min`` the lower projection bound (the least damping the vessel
+    is taken to have, c ≥ ĉ_min) and κ = ``C_COUPLING[1]`` < 1: every admissible pair leaves the frozen loop
+    the damping ``c + â₂β₁ − â₁ ≥ (1 − κ) β₁ â₂ > 0``. (The static ``max(dhi·c_nom, m_nom β₁)`` alone let
+    â₁ reach ``m_nom β₁`` with â₂ at ``0.3 m_nom``: a negative damping ``c − 0.7 m_nom β₁``.) Where â₁ is
+    fixed (Γ₂₂ = 0, the default) it stays the model's c_nom and only the static bound applies.
+    """
+    ceiling = const[C_A1_HI, i]
+    kappa = const[C_COUPLING, 1]
+    if kappa > 0.0 and const[C_GAMMA_C, i] > 0.0:
+        ceiling = min(ceiling, const[C_A1_LO, i] + kappa * const[C_BETA1, i] * a2)
+    return ceiling
+
+
+@kernel(void(i8, f8, f8_1d, f8_1d))
+def _rotate_acceleration(couple: int, r_m: float, nu_m: np.ndarray, accel: np.ndarray) -> None:
+    """With ``COUPLE_ROTATION``: ``accel`` = Rᵀÿ_M becomes ν̇_M = d/dt(Rᵀ(ψ)ẏ_M) = Rᵀÿ_M − S(r_M)ν_M, the
+    body-frame acceleration of the reference, whose rotation term ``[r_M v_M, −r_M u_M, 0]`` [m/s²] the plain
+    Rᵀÿ_M leaves out (``r_M`` = ẏ_M,ψ the reference's yaw rate [rad/s], ``nu_m`` = ν_M = Rᵀẏ_M)."""
+    if couple & COUPLE_ROTATION:
+        accel[0] += r_m * nu_m[1]
+        accel[1] -= r_m * nu_m[0]
+
+
+@kernel(void(i8, i8, f8_1d, f8_1d, f8_1d, f8_2d, f8_1d))
+def _known_coupling(couple: int, mask: int, z: np.ndarray, nu_m: np.ndarray, nu: np.ndarray, const: np.ndarray,
+                    known: np.ndarray) -> None:
+    """The coupling force of the nominal model that the per-DOF law (18) leaves out, into ``known`` [N, N, N·m].
+
+    With the plant ``M ν̇ + C(ν)ν + Dν = τ`` (seed 002 eqs. (1)–(10)) and the law
+    ``τ = diag(â₂) z + diag(â₁) ν + h`` the known part is
+
+    * ``COUPLE_INERTIA``: ``Σ_{j≠i} M_ij z_j`` (the supply vessel's M₂₃: sway–yaw), ``z_j`` of eq. (17) of an
+      enabled DOF j (a DOF not controlled has no error dynamics to shape);
+    * ``COUPLE_CORIOLIS``: ``C(ν_M)ν_M`` of the nominal M at the reference's body velocity ν_M = Rᵀẏ_M, in the
+      plant's Kirchhoff form ``[−p₂r, p₁r, p₂u − p₁v]``, p = Mν_M (the (M₁₁ − M₂₂) u v Munk moment, the
+      −M₂₂ v r and M₁₁ u r forces);
+    * ``COUPLE_DAMPING``: ``Σ_{j≠i} D_ij ν_j`` (the off-diagonal linear damping, on the velocity as â₁ν);
+    * ``COUPLE_DRAG`` (optional, not in the default): ``d_i |ν_M,i| ν_M,i``, the quadratic damping at the
+      reference's velocity over ground — right in still water; in a current the drag acts on ν − ν_c, which the
+      controller does not know (the bias estimate takes up its mean).
+
+    The rotation term of the acceleration (``COUPLE_ROTATION``) is in ``z`` itself (see :func:`mrac_step`).
+    With all four the error dynamics are ``M (ë + β₁ė + β₀e) = diag(v) ã`` (+ what the nominal model gets
+    wrong): with the same β₀, β₁ in every DOF, ``V = xᵀ(M ⊗ G)x + ãᵀΓ⁻¹ã`` gives ``V̇ = −xᵀ(M ⊗ Q_C)x`` for
+    the per-DOF law (21) unchanged — the M of the cross term cancels against M⁻¹ of the error dynamics.
+    """
+    m = const[C_MASS:C_MASS + 3]
+    if couple & COUPLE_INERTIA:
+        for i in range(3):
+            for j in range(3):
+                if j != i and (mask >> j) & 1:
+                    known[i] += m[i, j] * z[j]
+    if couple & COUPLE_CORIOLIS:
+        u = nu_m[0]
+        v = nu_m[1]
+        r = nu_m[2]
+        p1 = m[0, 0] * u + m[0, 1] * v + m[0, 2] * r
+        p2 = m[1, 0] * u + m[1, 1] * v + m[1, 2] * r
+        known[0] -= p2 * r
+        known[1] += p1 * r
+        known[2] += p2 * u - p1 * v
+    if couple & COUPLE_DRAG:
+        drag = const[C_DRAG]
+        for i in range(3):
+            known[i] += drag[i] * abs(nu_m[i]) * nu_m[i]
+    if couple & COUPLE_DAMPING:
+        d = const[C_DAMPING:C_DAMPING + 3]
+        for i in range(3):
+            for j in range(3):
+                if j != i:
+                    known[i] += d[i, j] * nu[j]
+
+
 @kernel(i8(f8, f8_1d, f8_1d, f8_1d, f8_1d, f8_1d, f8_1d, f8_1d, i8, f8_2d, f8_2d, f8_1d))
 def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind: np.ndarray, r: np.ndarray,
               rd: np.ndarray, rdd: np.ndarray, mask: int, const: np.ndarray, state: np.ndarray, out: np.ndarray) -> int:
     """One MRAC period: control law (17)–(18), adaptive law (21) and the exact advance of model (15).
+
+    The law per DOF i is ``τ_i = â₂ᵢ z_i + â₁ᵢ ν_i + h_i − b̂_i − τ̂_wind,i`` with z of eq. (17) on the reference's
+    body-frame acceleration and ``h`` the known coupling of the nominal model (``C_COUPLING``: the rotation
+    term in z, :func:`_rotate_acceleration`; the rest in :func:`_known_coupling`; h = 0 and z on Rᵀÿ_M for
+    seed 003's diagonal law).
 
     Parameters
     ----------
@@ -246,13 +339,18 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
     ydd_b[0] = c * ydd0 + s * ydd1
     ydd_b[1] = -s * ydd0 + c * ydd1
     ydd_b[2] = ydd2
+    couple = int(const[C_COUPLING, 0])
+    _rotate_acceleration(couple, yd_m[2], yd_b, ydd_b)
     ed_b = out[OUT_VELOCITY_ERROR:OUT_VELOCITY_ERROR + 3]
     z = np.empty(3)
     tau = out[OUT_TAU:OUT_TAU + 3]
     for i in range(3):
         ed_b[i] = nu[i] - yd_b[i]
         z[i] = ydd_b[i] - b1[i] * ed_b[i] - b0[i] * e_b[i]  # (17)
-        tau[i] = a2[i] * z[i] + a1[i] * nu[i] - bias[i] - wind[i] if (mask >> i) & 1 else 0.0  # (18)
+    known = np.zeros(3)
+    _known_coupling(couple, mask, z, yd_b, nu, const, known)
+    for i in range(3):
+        tau[i] = a2[i] * z[i] + a1[i] * nu[i] + known[i] - bias[i] - wind[i] if (mask >> i) & 1 else 0.0  # (18)
 
     excited = 0
     mass_changed = False
@@ -298,7 +396,7 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
             a1[i] = _adapted(a1[i], const[C_A1_NOMINAL, i], rate1, leak * gamma_c, dt)
             # projection onto the physical bounds
             a2[i] = _clamp(a2[i], const[C_A2_LO, i], const[C_A2_HI, i])
-            a1[i] = _clamp(a1[i], const[C_A1_LO, i], const[C_A1_HI, i])
+            a1[i] = _clamp(a1[i], const[C_A1_LO, i], damping_ceiling(const, i, a2[i]))
             if a2[i] != mass_before:
                 mass_changed = True
     parameters = out[OUT_PARAMETERS:]

@@ -66,9 +66,22 @@ class PlainMrac:
         e_b = [c * dn + s * de, -s * dn + c * de, ssa(eta[2] - y_m[2])]
         yd_b = [c * yd_m[0] + s * yd_m[1], -s * yd_m[0] + c * yd_m[1], yd_m[2]]
         ydd_b = [c * ydd[0] + s * ydd[1], -s * ydd[0] + c * ydd[1], ydd[2]]
+        coupling = self.config.coupling
+        if "rotation" in coupling:  # ν̇_M = Rᵀÿ_M − S(r_M)ν_M
+            ydd_b[0] += yd_m[2] * yd_b[1]
+            ydd_b[1] -= yd_m[2] * yd_b[0]
         ed_b = [nu[i] - yd_b[i] for i in range(3)]
         z = [ydd_b[i] - b1[i] * ed_b[i] - b0[i] * e_b[i] for i in range(3)]
-        tau = [self.a2[i] * z[i] + self.a1[i] * nu[i] - bias[i] if mask[i] else 0.0 for i in range(3)]
+        mass = self.config.mass_matrix
+        known = np.zeros(3)
+        if "inertia" in coupling:  # Σ_{j≠i} M_ij z_j over the enabled DOFs
+            known += (mass - np.diag(np.diag(mass))) @ np.where(mask, z, 0.0)
+        if "coriolis" in coupling:  # C(ν_M)ν_M, p = Mν_M
+            p = mass @ np.array(yd_b)
+            known += [-p[1] * yd_b[2], p[0] * yd_b[2], p[1] * yd_b[0] - p[0] * yd_b[1]]
+        if "damping" in coupling:
+            known += self.config.damping_off_diagonal @ np.array(nu)
+        tau = [self.a2[i] * z[i] + self.a1[i] * nu[i] + known[i] - bias[i] if mask[i] else 0.0 for i in range(3)]
         if self.adapt:
             self._adapt(dt, z, nu, yd_b, ydd_b, e_b, ed_b, mask)
         self.command = tau
@@ -110,7 +123,10 @@ class PlainMrac:
                 else:
                     values[i] += dt * rate
             self.a2[i] = min(max(self.a2[i], self.a2_bounds[0][i]), self.a2_bounds[1][i])
-            self.a1[i] = min(max(self.a1[i], self.a1_bounds[0][i]), self.a1_bounds[1][i])
+            ceiling = self.a1_bounds[1][i]
+            if gc > 0.0 and cfg.damping_bound_kappa > 0.0:  # the frozen loop (23) keeps c + â₂β₁ − â₁ > 0
+                ceiling = min(ceiling, self.a1_bounds[0][i] + cfg.damping_bound_kappa * self.beta1[i] * self.a2[i])
+            self.a1[i] = min(max(self.a1[i], self.a1_bounds[0][i]), ceiling)
 
 
 class PlainPid:

@@ -94,9 +94,20 @@ def test_lyapunov_matrix_and_pd_equivalence_of_eq_25() -> None:
     e = out.error_b
     ed = out.velocity_error_b
     ydd = beta0 * (np.zeros(3) - y_m) - beta1 * yd_m
-    np.testing.assert_allclose(out.tau_b, -p * e - d * ed + m * ydd + c * nu, rtol=1e-12)
+    # the known coupling of the nominal model (the supply vessel's M₂₃, D₂₃, D₃₂; C(ν_M)ν_M = 0 at rest): the PD of
+    # eq. (25) with the matrix M̂ = diag(â₂) + M_off, P = M̂β₀, D = M̂β₁, plus the off-diagonal damping
+    m_off = config.mass_matrix - np.diag(m)
+    assert abs(m_off[1, 2]) > 0.0
+    z = ydd - beta1 * ed - beta0 * e
+    np.testing.assert_allclose(out.tau_b, -p * e - d * ed + m * ydd + c * nu + m_off @ z
+                               + config.damping_off_diagonal @ nu, rtol=1e-12)
     np.testing.assert_allclose(p, m * beta0)
     np.testing.assert_allclose(d, m * beta1)
+    # without it (coupling: []): seed 003's diagonal law, a PD per DOF
+    diagonal = MracController(dataclasses.replace(config, coupling=()), adapt=False)
+    diagonal.step(0.1, np.zeros(3), np.zeros(3), None, Reference.hold(np.zeros(3)))
+    out = diagonal.step(0.1, eta, nu, None, Reference.hold(np.zeros(3)))
+    np.testing.assert_allclose(out.tau_b, -p * out.error_b - d * out.velocity_error_b + m * ydd + c * nu, rtol=1e-12)
 
 
 def _ideal_surge_adaptation(config: MracConfig, guidance: ReferenceModel | None, hours: float = 4.0
@@ -357,6 +368,19 @@ def test_a_guided_mrac_tracks_the_guidance_reference_itself() -> None:
     ed = nu - rot @ reference.eta_dot_d_n
     assert np.abs(reference.eta_ddot_d_n).max() > 0.0
     np.testing.assert_allclose(out.error_b, e, rtol=1e-9, atol=1e-12)
+    # with the known coupling of the nominal model: the body-frame acceleration of the reference
+    # ν̇_M = Rᵀη̈_d − S(r_d)ν_M, M = diag(â₂) + M_off, the Coriolis force C(ν_M)ν_M and the off-diagonal damping
+    nu_m = rot @ reference.eta_dot_d_n
+    r_m = reference.eta_dot_d_n[2]
+    accel = rot @ reference.eta_ddot_d_n + np.array([r_m * nu_m[1], -r_m * nu_m[0], 0.0])
+    z = accel - beta1 * ed - beta0 * e
+    mass = config.mass_matrix
+    p = mass @ nu_m
+    coriolis = np.array([-p[1] * r_m, p[0] * r_m, p[1] * nu_m[0] - p[0] * nu_m[1]])
+    np.testing.assert_allclose(out.tau_b, mass @ z + c * nu + config.damping_off_diagonal @ nu + coriolis, rtol=1e-9)
+    # seed 003's diagonal law (coupling: []): u = â₂(Rᵀη̈_d − β₁ė − β₀e) + â₁ẏ per DOF
+    diagonal = MracController(dataclasses.replace(config, coupling=()))
+    out = diagonal.step(0.1, eta, nu, None, reference)
     np.testing.assert_allclose(out.tau_b, m * (rot @ reference.eta_ddot_d_n - beta1 * ed - beta0 * e) + c * nu,
                                rtol=1e-9)
 
