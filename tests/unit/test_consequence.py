@@ -37,7 +37,9 @@ def test_a_beam_load_needs_the_bow_tunnels_a_head_load_does_not() -> None:
     beam = _outcomes([0.0, 150e3, 0.0])  # the stern azimuths alone cannot balance a beam force's yaw moment
     assert beam["bus_a"].holds and beam["bus_b"].holds
     assert not beam["bow_room"].holds
-    assert abs(beam["bow_room"].shortfall_b[2]) > 500e3  # [N·m] mostly the yaw moment left over
+    # with heading priority (the allocator's) the stern azimuths keep the moment balanced and the sway force is
+    # what is left over
+    assert abs(beam["bow_room"].shortfall_b[1]) > 50e3 and abs(beam["bow_room"].shortfall_b[2]) < 1.0  # [N], [N·m]
     assert beam["bow_room"].utilisation == pytest.approx(1.0)  # (what is left works at its limit)
     head = _outcomes([200e3, 0.0, 0.0])
     assert all(o.holds for o in head.values())
@@ -85,7 +87,7 @@ def test_timing_averaging_persistence_and_rest() -> None:
         ("consequence.bow_room", Severity.ALARM, 70.0)]
     text = alarms.active()[0].text
     assert text.startswith("worst-case failure: losing bow_room (bow_tunnel_1, bow_tunnel_2) would leave ")
-    assert "kN·m yaw" in text and "1.25 × the mean force of the last 30 s" in text
+    assert "kN sway" in text and "1.25 × the mean force of the last 30 s" in text
     # the load goes (the mean decays over 30 s): cleared after 10 s of holding, not at once
     _drive(monitor, 100.0, 400.0, "auto_position", [100e3, 0.0, 0.0])
     assert not alarms.is_active("consequence.bow_room")
