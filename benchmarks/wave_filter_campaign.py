@@ -96,14 +96,16 @@ def controller_sections(vessel: str, estimator: dict[str, Any], control: dict[st
 
 
 def estimator_section(kind: str, vessel: str) -> dict[str, Any]:
-    """The estimator under test: the example's MMAE grid when it has one, else the default grid."""
+    """The estimator under test: the example's MMAE grid when it has one, else the default grid; the example's
+    ``lf_yaw_bandwidth_rad_s`` (a property of its yaw loop, not of the filter kind) for every wave filter."""
     config = yaml.safe_load((ROOT / "deploy" / "config" / VESSELS[vessel][1]).read_text(encoding="utf-8"))
     example = config.get("estimator", {})
+    loop = {key: example[key] for key in ("lf_yaw_bandwidth_rad_s",) if key in example}
     if kind == "mmae":
         grid = example.get("omegas_rad_s") if example.get("kind") == "mmae" else None
-        return {"kind": "mmae", "omegas_rad_s": grid or DEFAULT_GRID}
+        return {"kind": "mmae", "omegas_rad_s": grid or DEFAULT_GRID, **loop}
     if kind == "pem":
-        return {"kind": "pem"}
+        return {"kind": "pem", **loop}
     if kind == "raw":
         # the baseline stays what it was before the wave filter's rule changed (LF velocity noise 0.002·√(gL),
         # bias drift 100 s): the measure must not move when the filter's tuning does

@@ -23,12 +23,31 @@ damping matrices, so one rule serves a 1.3 m model (CyberShip II) and a 260 m ta
   ``"equal_intensity"`` (seed 000): one intensity ``q1 = 4ζ·ω_ref·σ_wf²`` for all models (σ_wf at the
   reference frequency ω_ref, geometric mean of the grid), so lower-frequency models expect more WF
   motion (variance ∝ 1/ω0).
-* LF velocity noise w2: a force white noise that alone would make the first-order velocity dynamics
-  ``M_ii ν̇ + D_ii ν = w`` wander with standard deviation σ_ν: ``Q2_ii = 2·M_ii·D_ii·σ_ν²`` with
-  ``σ_ν = 0.001·√(gL)`` [m/s] in surge/sway (``0.002·√(gL)`` without wave states, ``kind="raw"``, whose LF
-  model must follow the wave motion too) and ``0.002·√(g/L)`` [rad/s] in yaw. Seed 002: "the entries of Q2
-  are taken as a fraction of the variance of the position measurement noises" — small; the LF velocity's
-  wave-band content is what a PID's derivative action turns into thrust (docs/wave-filter.md).
+* LF velocity noise w2 in surge/sway: a force white noise that alone would make the first-order velocity
+  dynamics ``M_ii ν̇ + D_ii ν = w`` wander with standard deviation σ_ν: ``Q2_ii = 2·M_ii·D_ii·σ_ν²`` with
+  ``σ_ν = 0.001·√(gL)`` [m/s] (``0.002·√(gL)`` without wave states, ``kind="raw"``, whose LF model must follow
+  the wave motion too). Seed 002: "the entries of Q2 are taken as a fraction of the variance of the position
+  measurement noises" — small; the LF velocity's wave-band content is what a PID's derivative action turns
+  into thrust (docs/wave-filter.md).
+* LF yaw noise w2_ψ, with wave states: set from the heading measurement noise so that the LF heading
+  estimate has a chosen bandwidth ω_c (``lf_yaw_bandwidth_rad_s``, default ``0.5·√(g/L)``)::
+
+      Q2_ψ = I_z²·ω_c⁴·R_ψ·Δt          [N²·m²·s]
+
+  I_z = M33 (with added mass), R_ψ the heading variance per sample [rad²], Δt the sample time. Seed 002
+  eq. (45) sets Q2 "as a fraction of the variance of the position measurement noises"; this fixes the
+  fraction by the bandwidth it gives: the LF yaw model is nearly a double integrator ``I_z ψ̈ = w2_ψ``
+  (the damping I_z/D33 and the bias are slower), whose steady-state Kalman filter with acceleration
+  intensity ``q = Q2_ψ/I_z²`` [rad²/s³] and measurement density ``r = R_ψ·Δt`` [rad²·s] has the error poles
+  ``ω_c·e^{±j3π/4}``, ``ω_c = (q/r)^{1/4}`` (the estimate's −3 dB point is ≈ 2.06·ω_c). ω_c is Froude scaled
+  like every rate of the rule: 0.18 rad/s for the 76 m supply vessel, 3.7× the natural frequency of the
+  default pole placement (``2π/(150 s·√(L/100 m))`` = 0.134·√(g/L), 0.100·√(g/L) for the tankers,
+  :func:`~dpcontrol.control.pid.pole_placement_gains`), so above such a loop and under the wave band. The former
+  rule (``σ_r = 0.002·√(g/L)``, ``Q2_ψ = 2·M33·D33·σ_r²``) gave ω_c = 0.5–1 rad/s at full scale (on the
+  wave band: the heading's wave motion reached the yaw moment) and 10 rad/s on CyberShip II; it is kept
+  when ``lf_yaw_rate_std_radps`` is given and for ``raw`` (no wave states: its LF model must follow the
+  waves). A vessel whose yaw loop is faster than the rule's ω_c (CyberShip II with seed 000's gains,
+  1.67 rad/s) needs ``lf_yaw_bandwidth_rad_s`` at a few times its loop (docs/wave-filter.md).
 * Bias w3 (seed 002 eq. (33) / seed 001 eq. (35)): the slowly varying environmental force is
   expected to be of size ``σ_b = D̄·v_c`` with ``v_c = 0.02·√(gL)`` (a current of that speed; D̄ the
   mean of D11 and D22; yaw: ``D33·v_c/L``). Random walk: ``Q3 = σ_b²/T_drift`` (the bias can
@@ -120,7 +139,11 @@ class WaveFilterConfig:
         ω_ref of the equal-intensity rule [rad/s] (None: geometric mean of ``omegas_rad_s``).
     wf_noise_rule : {"equal_variance", "equal_intensity"}
     lf_velocity_std_mps, lf_yaw_rate_std_radps : float or None
-        σ_ν of the LF velocity noise rule [m/s], [rad/s].
+        σ_ν of the LF velocity noise rule [m/s], [rad/s]; a given ``lf_yaw_rate_std_radps`` replaces the
+        bandwidth rule in yaw by ``Q2_ψ = 2·M33·D33·σ_r²``.
+    lf_yaw_bandwidth_rad_s : float or None
+        ω_c of the LF yaw noise rule ``Q2_ψ = I_z²·ω_c⁴·R_ψ·Δt`` [rad/s] (None: ``0.5·√(g/L)``); must lie
+        at most π/(2Δt) (half the Nyquist frequency). Ignored for ``raw`` and when ``lf_yaw_rate_std_radps`` is given.
     bias_force_std_n, bias_moment_std_nm : float or None
         σ_b of the bias rule [N], [N·m].
     bias_drift_time_s, bias_yaw_drift_time_s : float
@@ -128,7 +151,7 @@ class WaveFilterConfig:
     process_noise_intensity : tuple of 9 float or None
         Explicit ``diag(Q1, Q2, Q3)``; overrides the four rules above.
     position_noise_std_m, heading_noise_std_rad : float or None
-        Measurement noise per sample [m], [rad] (None: 0.002·L, 0.1°).
+        Measurement noise per sample [m], [rad] (None: 0.002·L, 0.1°); the heading's at most π.
     weighting : {"bayes", "dwsg"}
         Discrete Bayes with forgetting (default), or the seed 000 eq. (18) DWSG (mmae); see
         :mod:`~dpcontrol.estimation.weighting` for why Bayes is the default.
@@ -190,6 +213,7 @@ class WaveFilterConfig:
     wf_noise_rule: str = "equal_variance"
     lf_velocity_std_mps: float | None = None
     lf_yaw_rate_std_radps: float | None = None
+    lf_yaw_bandwidth_rad_s: float | None = None
     bias_force_std_n: float | None = None
     bias_moment_std_nm: float | None = None
     bias_drift_time_s: float | None = None
@@ -260,11 +284,19 @@ class WaveFilterConfig:
         if self.likelihood_scale not in LIKELIHOOD_SCALES:
             raise ConfigError("likelihood_scale", "one of " + ", ".join(LIKELIHOOD_SCALES), self.likelihood_scale)
         for name in ("length_m", "wf_position_std_m", "wf_heading_std_rad", "wf_reference_omega_rad_s",
-                     "lf_velocity_std_mps", "lf_yaw_rate_std_radps", "bias_force_std_n", "bias_moment_std_nm",
+                     "lf_velocity_std_mps", "lf_yaw_rate_std_radps", "lf_yaw_bandwidth_rad_s", "bias_force_std_n",
+                     "bias_moment_std_nm",
                      "position_noise_std_m", "heading_noise_std_rad", "rpem_initial_variance"):
             value = getattr(self, name)
             if value is not None:
                 check_number(value, name, minimum=0.0, exclusive_minimum=True)
+        # upper bounds: a heading noise beyond half a turn carries no heading (and the yaw rule scales Q2_ψ with
+        # R_ψ: an absurd R_ψ would leave the Riccati equation unsolvable); ω_c·Δt ≤ π/2 as for the wave
+        # frequencies, where the continuous-time rule still holds
+        for name, maximum in (("heading_noise_std_rad", math.pi),
+                              ("lf_yaw_bandwidth_rad_s", 0.5 * math.pi / float(self.sample_time_s))):
+            if getattr(self, name) is not None:
+                check_number(getattr(self, name), name, maximum=maximum)
         if self.bias_drift_time_s is not None:
             check_number(self.bias_drift_time_s, "bias_drift_time_s", minimum=0.0, exclusive_minimum=True)
         check_number(self.bias_yaw_drift_time_s, "bias_yaw_drift_time_s", minimum=0.0, exclusive_minimum=True)
@@ -344,17 +376,41 @@ class WaveFilterConfig:
         omega = omega_rad_s if self.wf_noise_rule == "equal_variance" else self.reference_omega_rad_s
         return 4.0 * self.zeta * omega * self.wf_std() ** 2
 
+    def lf_yaw_bandwidth(self) -> float:
+        """ω_c of the LF yaw noise rule [rad/s]: ``lf_yaw_bandwidth_rad_s`` or ``0.5·√(g/L)`` (Froude scaled)."""
+        if self.lf_yaw_bandwidth_rad_s is not None:
+            return float(self.lf_yaw_bandwidth_rad_s)
+        return 0.5 * math.sqrt(_GRAVITY_MPS2 / self.length_scale_m)
+
     def force_intensity(self) -> np.ndarray:
-        """Q2 (3,) [N²·s, N²·s, N²·m²·s]: ``2·M_ii·D_ii·σ_ν²``."""
+        """Q2 (3,) [N²·s, N²·s, N²·m²·s] (module docstring).
+
+        Surge/sway: ``2·M_ii·D_ii·σ_ν²``. Yaw with wave states: ``Q2_ψ = I_z²·ω_c⁴·R_ψ·Δt``, so that the
+        steady-state LF heading filter, nearly a double integrator, has the error poles ``ω_c·e^{±j3π/4}``
+        (Kalman–Bucy: ``ω_c = (q/r)^{1/4}`` for ``q = Q2_ψ/I_z²`` [rad²/s³], ``r = R_ψ·Δt`` [rad²·s]); seed 002
+        eq. (45) takes Q2 as a fraction of the measurement noise variance, and ω_c sets the fraction. Yaw with
+        ``lf_yaw_rate_std_radps`` given, or without wave states (``raw``): ``2·M33·D33·σ_r²``, σ_r defaulting
+        to ``0.002·√(g/L)``.
+        """
         if self.process_noise_intensity is not None:
             return np.array(self.process_noise_intensity[3:6])
         L = self.length_scale_m
+        M = np.diag(self.mass_matrix)
+        D = np.diag(self.damping_matrix)
         # without wave states (raw) the LF model must follow the wave motion too: the former, faster rule
         factor = 0.002 if self.kind == "raw" else 0.001
         v = self.lf_velocity_std_mps if self.lf_velocity_std_mps is not None else factor * math.sqrt(_GRAVITY_MPS2 * L)
-        r = (self.lf_yaw_rate_std_radps if self.lf_yaw_rate_std_radps is not None
-             else 0.002 * math.sqrt(_GRAVITY_MPS2 / L))
-        return 2.0 * np.diag(self.mass_matrix) * np.diag(self.damping_matrix) * np.array([v, v, r]) ** 2
+        surge_sway = 2.0 * M[:2] * D[:2] * v**2
+        if self.lf_yaw_rate_std_radps is not None or self.kind == "raw":
+            r = (self.lf_yaw_rate_std_radps if self.lf_yaw_rate_std_radps is not None
+                 else 0.002 * math.sqrt(_GRAVITY_MPS2 / L))
+            yaw = 2.0 * M[2] * D[2] * r**2
+        else:
+            # The heading filter's bandwidth follows the gyro: a fixed σ_r made it 0.5–1 rad/s on a quiet
+            # full-scale gyro (inside the wave band) and 10 rad/s on CyberShip II; tied to R_ψ it is ω_c on any.
+            r_psi = float(self.measurement_covariance()[2, 2])
+            yaw = M[2] ** 2 * self.lf_yaw_bandwidth() ** 4 * r_psi * self.sample_time_s
+        return np.array([surge_sway[0], surge_sway[1], yaw])
 
     def bias_std(self) -> np.ndarray:
         """σ_b (3,) [N, N, N·m] of the bias rule."""

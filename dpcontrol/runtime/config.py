@@ -308,7 +308,8 @@ def _parse_route(section: Section, transports: Mapping[str, TransportConfig]) ->
                                             maximum=30.0))
         lever = (0.0, 0.0)
     else:
-        sigma = math.radians(section.number("sigma_deg", 0.2, minimum=0.0, exclusive_minimum=True))
+        # (≤ 180°, as the plant's gyro noise: a heading noise beyond half a turn carries no heading)
+        sigma = math.radians(section.number("sigma_deg", 0.2, minimum=0.0, exclusive_minimum=True, maximum=180.0))
         lever = (0.0, 0.0)
     protocol = transports[transport].protocol
     talker = section.raw("talker", None)

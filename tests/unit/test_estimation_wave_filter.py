@@ -392,6 +392,52 @@ def test_default_tuning_scales_with_the_vessel() -> None:
     assert np.array_equal(explicit.bias_intensity(), [7, 8, 9])
 
 
+def test_lf_yaw_noise_follows_the_heading_noise_for_a_chosen_bandwidth() -> None:
+    """Q2_ψ = I_z²·ω_c⁴·R_ψ·Δt, ω_c = 0.5·√(g/L) unless set; lf_yaw_rate_std_radps and raw keep 2·M33·D33·σ_r²."""
+    M33, D33 = SUPPLY.mass_matrix[2, 2], SUPPLY.damping_matrix[2, 2]
+    rule = _config()
+    omega_c = 0.5 * math.sqrt(9.81 / SUPPLY.length_m)
+    assert math.isclose(rule.lf_yaw_bandwidth(), omega_c)
+    r_psi = math.radians(0.1) ** 2
+    assert math.isclose(rule.force_intensity()[2], M33**2 * omega_c**4 * r_psi * DT, rel_tol=1e-12)
+    quiet = _config(heading_noise_std_rad=math.radians(0.05), lf_yaw_bandwidth_rad_s=0.3)
+    assert math.isclose(quiet.force_intensity()[2], M33**2 * 0.3**4 * math.radians(0.05) ** 2 * DT, rel_tol=1e-12)
+    explicit = _config(lf_yaw_rate_std_radps=1e-3, lf_yaw_bandwidth_rad_s=0.3)
+    assert math.isclose(explicit.force_intensity()[2], 2 * M33 * D33 * 1e-6, rel_tol=1e-12)
+    raw = _config("raw")
+    assert math.isclose(raw.force_intensity()[2], 2 * M33 * D33 * (0.002 * math.sqrt(9.81 / SUPPLY.length_m)) ** 2,
+                        rel_tol=1e-12)
+    assert np.array_equal(rule.force_intensity()[:2], explicit.force_intensity()[:2])
+
+
+@pytest.mark.parametrize("omega_c", [0.179, 0.3, 1.0])
+def test_lf_yaw_rule_puts_the_heading_filter_poles_at_the_bandwidth(omega_c: float) -> None:
+    """The derivation's claim on the discrete filter of the LF model: with the yaw bias noise negligible, the
+    heading error poles of the steady-state filter are ω_c·e^{±j3π/4} (Kalman–Bucy double integrator,
+    ω_c = (q/r)^¼). Diagonal M and D decouple yaw from surge and sway. The supply vessel's yaw damping
+    D33/M33 = 0.086 1/s is not negligible at its default ω_c = 0.179 rad/s: the modulus holds, the poles are
+    better damped than 3π/4 (the angle is checked from ω_c ≥ 0.3 rad/s, 3.5·D33/M33, on)."""
+    from dpcontrol.estimation.design_model import dp_design_model  # noqa: PLC0415
+    from dpcontrol.estimation.discretize import discretize  # noqa: PLC0415
+    from dpcontrol.estimation.kalman import steady_state_filter  # noqa: PLC0415
+
+    cfg = _config("kf", lf_yaw_bandwidth_rad_s=omega_c, bias_yaw_drift_time_s=1e12, sample_time_s=0.1)
+    model = dp_design_model(np.diag(np.diag(SUPPLY.mass_matrix)), np.diag(np.diag(SUPPLY.damping_matrix)), None,
+                            zeta=cfg.zeta, wf_intensity=None, force_intensity=cfg.force_intensity(),
+                            bias_intensity=cfg.bias_intensity())
+    d = discretize(model.A, model.B, model.E, model.Qc, cfg.sample_time_s)
+    gain = steady_state_filter(d.Phi, model.H, d.Qd, cfg.measurement_covariance()).K
+    F = (np.eye(model.n) - gain @ model.H) @ d.Phi
+    idx = model.index
+    yaw = [idx.eta.start + 2, idx.bias.start + 2, idx.nu.start + 2]
+    poles = np.log(np.linalg.eigvals(F[np.ix_(yaw, yaw)]).astype(complex)) / cfg.sample_time_s
+    pair = poles[np.abs(poles) > 0.1 * omega_c]          # (the third, the bias's, is near 0 without its noise)
+    assert pair.size == 2
+    assert np.allclose(np.abs(pair), omega_c, rtol=0.05)
+    if omega_c >= 0.3:
+        assert np.allclose(np.abs(np.angle(pair)), 0.75 * math.pi, atol=math.radians(4.0))
+
+
 @pytest.mark.parametrize(("kwargs", "key"), [
     ({"kind": "ekf"}, "kind"),
     ({"omegas_rad_s": ()}, "omegas_rad_s"),
@@ -412,6 +458,9 @@ def test_default_tuning_scales_with_the_vessel() -> None:
     ({"kind": "rpem", "omegas_rad_s": (3.0,)}, "omegas_rad_s"),
     ({"kind": "rpem", "omegas_rad_s": (0.6,), "zeta": 1.0}, "zeta"),
     ({"time_varying": "yes"}, "time_varying"),
+    ({"lf_yaw_bandwidth_rad_s": 0.0}, "lf_yaw_bandwidth_rad_s"),
+    ({"lf_yaw_bandwidth_rad_s": 0.51 * math.pi / DT}, "lf_yaw_bandwidth_rad_s"),
+    ({"heading_noise_std_rad": 3.2}, "heading_noise_std_rad"),
 ])
 def test_config_errors_name_the_field(kwargs: dict, key: str) -> None:
     with pytest.raises(ConfigError) as error:
