@@ -618,9 +618,14 @@ class DpController:
         if self.mode is not Mode.STANDBY:
             fb = self.config.fallback
             if heading_lost and hub.heading_lost_s >= fb.heading_loss_limit_s:
-                wanted = self._loss_limit(t_s, "heading", fb.heading_loss, fb.heading_loss_limit_s, wanted)
+                carrier = "the model" if hub.heading_rate_source is None else \
+                    f"the rate of turn ({hub.heading_rate_source})"
+                wanted = self._loss_limit(t_s, "heading", fb.heading_loss, fb.heading_loss_limit_s, wanted,
+                                          carrier=carrier)
             elif self.mode is Mode.AUTO_POSITION and dead_reckoning:
-                wanted = self._position_loss(t_s, hub.position_lost_s, wanted)
+                carrier = "the model" if hub.position_velocity_source is None else \
+                    f"the velocity of {hub.position_velocity_source}"
+                wanted = self._position_loss(t_s, hub.position_lost_s, wanted, carrier)
         fell_back = self._fell_back
         if fell_back is not None and wanted is self.mode and self._requested_mode is self.mode:
             wanted = self._restore(t_s, hub, fell_back)
@@ -777,8 +782,9 @@ class DpController:
                            f"MRAC {_MASS_NAMES[dof]} estimate reached its bound ({ratio:.2g}x nominal): adaptation "
                            "suspended, nominal parameters (fixed PD) until a restart")
 
-    def _position_loss(self, t_s: float, lost_s: float, wanted: Mode) -> Mode:
-        """In ``auto_position`` with every position reference lost for ``lost_s``: the mode wanted after it.
+    def _position_loss(self, t_s: float, lost_s: float, wanted: Mode, carrier: str) -> Mode:
+        """In ``auto_position`` with every position reference lost for ``lost_s``: the mode wanted after it
+        (``carrier``: what the position is dead-reckoned on, for the alarm text).
 
         An estimator without a vessel model (``dead_reckons`` False) only extrapolates the last velocity:
         holding position on it pushes against an error that exists only in the estimate (the Blue Lady 17 m
@@ -789,15 +795,16 @@ class DpController:
         limit_s, action = self._position_loss_rule
         if lost_s < limit_s:
             return wanted
-        return self._loss_limit(t_s, "position", action, limit_s, wanted)
+        return self._loss_limit(t_s, "position", action, limit_s, wanted, carrier=carrier)
 
-    def _loss_limit(self, t_s: float, kind: str, action: str, limit_s: float, wanted: Mode) -> Mode:
-        """Every ``kind`` (``position``/``heading``) reference lost for ``limit_s``: keep holding on the model with a
-        critical alarm (``action`` ``dead_reckoning``), or fall back to standby / auto_heading. Returns the mode
-        wanted after it."""
+    def _loss_limit(self, t_s: float, kind: str, action: str, limit_s: float, wanted: Mode, *,
+                    carrier: str) -> Mode:
+        """Every ``kind`` (``position``/``heading``) reference lost for ``limit_s``: keep holding on what carries it
+        (``carrier``: the model, a receiver's velocity, a rate of turn) with a critical alarm (``action``
+        ``dead_reckoning``), or fall back to standby / auto_heading. Returns the mode wanted after it."""
         if action == "dead_reckoning":
             self.alarms.raise_(t_s, f"{kind}.dead_reckoning_limit", Severity.CRITICAL,
-                               f"{kind} dead-reckoned beyond {limit_s:g} s: still holding on the model; the "
+                               f"{kind} dead-reckoned beyond {limit_s:g} s: still holding on {carrier}; the "
                                "operator decides")
             return wanted
         fallback = Mode.STANDBY if action == "standby" else Mode.AUTO_HEADING

@@ -50,3 +50,6 @@ def test_a_lone_gnss_jumping_10_m_for_60_s_is_rejected_and_dead_reckoned_through
     # velocity_check_return_s (5 s) after the jump ends
     cleared = [t for t, up in run.events("position.velocity_disagreement") if not up]
     assert cleared and START_S + 60.0 <= cleared[-1] <= START_S + 60.0 + 15.0
+    # past the dead-reckoning limit (60 s) the critical alarm says what still carries the position
+    texts = [e.text for e in run.result.alarm_events if e.code == "position.dead_reckoning_limit" and e.raised]
+    assert texts and all("still holding on the velocity of gnss1" in text for text in texts), texts
