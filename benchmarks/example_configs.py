@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +32,7 @@ import numpy as np
 import yaml
 
 from dpcontrol.runtime.config import CONTROLLER_SECTIONS
+from sim_plant.bench.lockstep import LockstepSimulation
 from sim_plant.bench.run import build_simulation
 from sim_plant.scenario import load_scenario
 
@@ -45,6 +47,23 @@ EXAMPLES: dict[str, tuple[str, float | None]] = {
 }
 
 
+def deviation_watch(simulation: LockstepSimulation) -> tuple[Callable[[float, object], None], list[float], list[float]]:
+    """An observer for ``simulation.run`` collecting the deviation monitor's readings each step, and the two lists it
+    fills: position [m] and heading [rad] deviations (the estimate against the reference the controller follows),
+    while each is watched."""
+    deviation = simulation.controller.deviation
+    position: list[float] = []
+    heading: list[float] = []
+
+    def watch(_t_s: float, _out: object) -> None:
+        if deviation.position_m is not None:
+            position.append(deviation.position_m)
+        if deviation.heading_rad is not None:
+            heading.append(deviation.heading_rad)
+
+    return watch, position, heading
+
+
 def run_example(example: str, scenario_name: str | None = None, duration_s: float | None = None,
                 control: dict[str, Any] | None = None) -> dict[str, Any]:
     """One example in lockstep; returns the deviations, the alarms and what the run used."""
@@ -57,16 +76,7 @@ def run_example(example: str, scenario_name: str | None = None, duration_s: floa
     if control is not None:
         overrides["control"] = control
     simulation = build_simulation(scenario, overrides=overrides)
-    deviation = simulation.controller.deviation
-    position: list[float] = []
-    heading: list[float] = []
-
-    def watch(_t_s: float, _out: object) -> None:
-        if deviation.position_m is not None:
-            position.append(deviation.position_m)
-        if deviation.heading_rad is not None:
-            heading.append(deviation.heading_rad)
-
+    watch, position, heading = deviation_watch(simulation)
     duration = duration_s if duration_s is not None else (seed_duration if scenario_name is None else None)
     result = simulation.run(duration_s=duration, observer=watch, timeseries=False)
     mass = getattr(simulation.controller.controller, "mass_hat_floats", None)

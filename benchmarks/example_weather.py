@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 import yaml
+from example_configs import deviation_watch
 from wave_filter_campaign import ROOT, VESSELS, random_sea
 
 from dpcontrol.runtime.config import CONTROLLER_SECTIONS
@@ -62,16 +63,7 @@ def run(vessel: str, seed: int) -> str:
     """One run; the line it prints."""
     scenario, duration = case(vessel, seed)
     simulation = build_simulation(parse_scenario(scenario, file=scenario["name"]))
-    deviation = simulation.controller.deviation
-    position: list[float] = []
-    heading: list[float] = []
-
-    def watch(_t_s: float, _out: object) -> None:
-        if deviation.position_m is not None:
-            position.append(deviation.position_m)
-        if deviation.heading_rad is not None:
-            heading.append(deviation.heading_rad)
-
+    watch, position, heading = deviation_watch(simulation)
     start = time.perf_counter()
     result = simulation.run(duration_s=duration, observer=watch, timeseries=False)
     sea = scenario["sea_states"][0]
