@@ -4,25 +4,11 @@ the benchmarks' business; these keep their machinery honest on every commit.)"""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-from types import ModuleType
-
-BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
-
-
-def _load(name: str) -> ModuleType:
-    spec = importlib.util.spec_from_file_location(name, BENCHMARKS / f"{name}.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
+from benchmark_module import load_benchmark
 
 
 def test_stage_breakdown_accounts_for_the_step() -> None:
-    stages_benchmark = _load("bench_lockstep_stages")
+    stages_benchmark = load_benchmark("bench_lockstep_stages")
     result = stages_benchmark.run("tanker-seed003", duration_s=30.0)
     steps = result["steps"]
     assert steps == 301
@@ -44,14 +30,14 @@ def test_stage_breakdown_accounts_for_the_step() -> None:
 
 
 def test_cold_cache_probe_times_each_step_after_the_wait() -> None:
-    probe = _load("bench_cold_cache")
+    probe = load_benchmark("bench_cold_cache")
     durations = probe._run("back-to-back", 12)
     assert durations.shape == (12,)
     assert (durations > 0.0).all() and (durations < 1e6).all()  # µs: a step, not a whole run
 
 
 def test_cold_cache_probe_times_the_kernel_per_gap() -> None:
-    probe = _load("bench_cold_cache")
+    probe = load_benchmark("bench_cold_cache")
     kernel = probe._kernel(3)
     assert list(kernel) == ["0 ms", "2 ms", "10 ms", "100 ms"]
     for row in kernel.values():

@@ -11,15 +11,13 @@ reference model y_M trails by design, and raised ``position.deviation.alarm`` at
 
 from __future__ import annotations
 
-import importlib.util
 import math
-import sys
 from pathlib import Path
-from types import ModuleType
 
 import numpy as np
 import pytest
 import yaml
+from benchmark_module import load_benchmark
 
 from dpcontrol.models.vessels import BUILTIN_VESSELS
 from dpcontrol.runtime.config import parse_config
@@ -27,17 +25,7 @@ from dpcontrol.runtime.config import parse_config
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def _benchmark() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("example_configs_benchmark",
-                                                  ROOT / "benchmarks" / "example_configs.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
-
-
-BENCHMARK = _benchmark()
+BENCHMARK = load_benchmark("example_configs")
 
 
 @pytest.mark.parametrize("example", sorted(BENCHMARK.EXAMPLES))

@@ -8,32 +8,17 @@ admissible estimate leaves the frozen loop of seed 003 eq. (23) without damping.
 from __future__ import annotations
 
 import dataclasses
-import importlib.util
-import sys
-from pathlib import Path
-from types import ModuleType
 
 import numpy as np
 import pytest
+from benchmark_module import load_benchmark
 
 from dpbase.schema import ConfigError
 from dpcontrol.control.mrac import DEFAULT_COUPLING, MracController, default_mrac_config, mrac_config_from_mapping
 from dpcontrol.guidance.reference_model import Reference
 from dpcontrol.models.vessels import BLUE_LADY, CYBERSHIP2, SHUTTLE_TANKER, SUPPLY, VesselData
 
-ROOT = Path(__file__).resolve().parents[2]
-
-
-def _benchmark() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("mrac_estimate_bias", ROOT / "benchmarks" / "mrac_estimate_bias.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
-
-
-BENCHMARK = _benchmark()
+BENCHMARK = load_benchmark("mrac_estimate_bias")
 
 
 def test_combined_moves_leave_the_supply_vessels_estimates_unbiased() -> None:

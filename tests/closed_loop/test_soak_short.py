@@ -4,19 +4,11 @@ every commit: no exception, no NaN in any output, every detectable fault detecte
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-
-SOAK = Path(__file__).resolve().parents[2] / "benchmarks" / "soak.py"
+from benchmark_module import load_benchmark
 
 
 def test_forty_minutes_of_random_faults() -> None:
-    spec = importlib.util.spec_from_file_location("soak_benchmark", SOAK)
-    assert spec is not None and spec.loader is not None
-    soak = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = soak  # its dataclasses look their module up
-    spec.loader.exec_module(soak)
+    soak = load_benchmark("soak")
     report = soak.run(hours=40.0 / 60.0, seed=7)
     assert report["exception"] is None, report["exception"]
     assert report["nonfinite_steps"] == 0, report["first_nonfinite"]

@@ -3,7 +3,6 @@ and end to end between two processes."""
 
 from __future__ import annotations
 
-import importlib.util
 import itertools
 import os
 import queue
@@ -14,6 +13,7 @@ from pathlib import Path
 
 import pytest
 import serial
+from benchmark_module import load_benchmark
 
 from interfaces.messages import (
     FixQuality,
@@ -260,17 +260,9 @@ def test_pty_is_raw_both_ways_and_the_writer_writes(pty: PtyPair) -> None:
         assert port.read(len(every_byte)) == every_byte
 
 
-def _load_benchmark() -> object:
-    path = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_nmea0183_transport.py"
-    spec = importlib.util.spec_from_file_location("bench_nmea0183_transport", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 def test_two_processes_over_a_pty_deliver_every_sentence() -> None:
     """The writer is a separate process (the emulator's role); the reader is here. Delivery, not timing."""
-    result = _load_benchmark().run(count=200, rate_hz=0.0)
+    result = load_benchmark("bench_nmea0183_transport").run(count=200, rate_hz=0.0)
     assert result["sent"] == 200 and result["delivered"] == 200 and result["lost"] == 0
     assert result["rejected"] == 0
     for key in ("write_to_decoded", "write_to_read"):
