@@ -1122,10 +1122,8 @@ class SensorHub:
             base = self._base_variance
             s_north, s_east = (base[0], base[1]) if base is not None else (variance, variance)
             y_n = out.y_n
-            y_n[0] = predicted[0] + s_north / (s_north + variance) * (north - predicted[0]) \
-                if s_north + variance > 0.0 else north
-            y_n[1] = predicted[1] + s_east / (s_east + variance) * (east - predicted[1]) \
-                if s_east + variance > 0.0 else east
+            y_n[0] = predicted[0] + _update_weight(s_north, variance) * (north - predicted[0])
+            y_n[1] = predicted[1] + _update_weight(s_east, variance) * (east - predicted[1])
             out.measured = (True, True, out.measured[2])
             out.position_velocity_source = track.name
             out.position_dr_sigma_m = math.sqrt(variance)
@@ -1254,8 +1252,7 @@ class SensorHub:
         variance = self._dr_var0 + self._dr_noise_var + self._dr_bias_sd * self._dr_bias_sd
         base = self._base_variance
         innovation = base[2] if base is not None else variance
-        weight = innovation / (innovation + variance) if innovation + variance > 0.0 else 1.0
-        out.y_n[2] = ssa(predicted[2] + weight * ssa(self._dr_heading - predicted[2]))
+        out.y_n[2] = ssa(predicted[2] + _update_weight(innovation, variance) * ssa(self._dr_heading - predicted[2]))
         out.measured = (out.measured[0], out.measured[1], True)
         out.heading_rate_source = source.name
         out.heading_dr_sigma_rad = math.sqrt(variance)
@@ -1809,6 +1806,13 @@ class SensorHub:
 
     def weight_of(self, name: str) -> float:
         return self._tracks[name].weight
+
+
+def _update_weight(innovation_variance: float, extra_variance: float) -> float:
+    """S/(S + σ²): the share of a dead-reckoned measurement of variance σ² [m², rad²] the steady-state estimator
+    takes, S its innovation variance — the Kalman update with R + σ² (module docstring); 1 when both are 0."""
+    total = innovation_variance + extra_variance
+    return innovation_variance / total if total > 0.0 else 1.0
 
 
 def _gst_sigma(sigma_north_m: float | None, sigma_east_m: float | None) -> float | None:
