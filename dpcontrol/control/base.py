@@ -120,7 +120,7 @@ class PositionController(Protocol):
     @property
     def rudder_steering(self) -> bool: ...
 
-    def step(self, dt_s: float, eta_hat_n: np.ndarray, nu_hat_b: np.ndarray, bias_hat_b: np.ndarray | None,
+    def step(self, dt_s: float, eta_hat_ned: np.ndarray, nu_hat_b: np.ndarray, bias_hat_b: np.ndarray | None,
              reference: Reference, *, dof_enabled: Sequence[bool] = ALL_DOFS,
              tau_wind_ff_b: np.ndarray | None = None) -> ControlOutput: ...
 
@@ -194,7 +194,7 @@ def kernel_arguments(dof_enabled: Sequence[bool], bias_hat_b: Any, tau_wind_ff_b
     return (mask, zero3 if bias_hat_b is None else bias_hat_b, zero3 if tau_wind_ff_b is None else tau_wind_ff_b)
 
 
-def checked_state_inputs(eta_hat_n: Any, nu_hat_b: Any, dof_enabled: Sequence[bool], *, bias_hat_b: Any,
+def checked_state_inputs(eta_hat_ned: Any, nu_hat_b: Any, dof_enabled: Sequence[bool], *, bias_hat_b: Any,
                          tau_wind_ff_b: Any, zero3: np.ndarray
                          ) -> tuple[np.ndarray, np.ndarray, int, np.ndarray, np.ndarray]:
     """The state arguments of a controller step checked in their order and converted for its kernel.
@@ -211,7 +211,7 @@ def checked_state_inputs(eta_hat_n: Any, nu_hat_b: Any, dof_enabled: Sequence[bo
     bias, wind : ndarray, shape (3,)
         b̂ and the wind feed-forward [N, N, N·m] (body), ``zero3`` when not given.
     """
-    eta = np.array(floats3("eta_hat_n", eta_hat_n))
+    eta = np.array(floats3("eta_hat_ned", eta_hat_ned))
     nu = np.array(floats3("nu_hat_b", nu_hat_b))
     flags = dof_mask(dof_enabled)
     bias = zero3 if bias_hat_b is None else np.array(floats3("bias_hat_b", bias_hat_b))

@@ -213,7 +213,7 @@ class WaveField:
         return wave_sums(t_s, d, d_rate, weight, self._omega, self._k, self._eps, self._weights)
 
     def drift_factors(self) -> tuple[float, float, float]:
-        """Direction factors (l_x, l_y, l_n) for the β of the last :meth:`evaluate`."""
+        """Direction factors (l_x, l_y, l_ψ) for the β of the last :meth:`evaluate`."""
         return self._drift_factors
 
     def motion_series(self, t_s: np.ndarray, heading_rad: float, north_m: float = 0.0, east_m: float = 0.0
@@ -233,7 +233,7 @@ class WaveField:
         return np.column_stack((s @ (self._a * rx), s @ (self._a * ry), -(np.cos(phi) @ (self._a * rpsi))))
 
     def mean_drift_b(self, heading_rad: float) -> tuple[float, float, float]:
-        """Mean drift force Σ b_i² · (l_x, l_y, l_n) in body axes [N, N, N·m] (∝ Hs²)."""
+        """Mean drift force Σ b_i² · (l_x, l_y, l_ψ) in body axes [N, N, N·m] (∝ Hs²)."""
         mean = float(np.dot(self._b, self._b))
         lx, ly, ln = drift_direction_factors(self.relative_direction(heading_rad), self.hull)
         return mean * lx, mean * ly, mean * ln

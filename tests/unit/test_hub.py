@@ -62,7 +62,7 @@ class Scene:
                     msg = Heading(heading % (2 * math.pi))
                 measurements.append(Measurement(self.t, name, msg))
             out = self.hub.update(self.t, measurements, [0.0, 0.0, math.radians(30.0)], [0.3, 0.3, 1e-5])
-            self.outputs.append((out.y_n[0], out.y_n[1], out.y_n[2], out.measured))
+            self.outputs.append((out.y_ned[0], out.y_ned[1], out.y_ned[2], out.measured))
 
 
 def test_fuses_a_single_reference_and_marks_new_samples() -> None:
@@ -313,7 +313,7 @@ def test_references_back_after_a_loss_start_from_the_prediction() -> None:
         scene.t += DT
         measurement = Measurement(scene.t, "gnss1", _fix(scene.rng.normal(0.0, 0.05), scene.rng.normal(0.0, 0.05)))
         out = hub.update(scene.t, [measurement], [1.5, 0.0, math.radians(30.0)], [0.3, 0.3, 1e-5])
-        outputs.append(out.y_n[0])
+        outputs.append(out.y_ned[0])
     north = np.array(outputs)
     assert abs(north[0] - 1.5) < 0.2  # starts at the (dead-reckoned) prediction
     assert np.max(np.abs(np.diff(north))) < 0.3  # no 1.5 m step (sample-to-sample noise: σ 0.07 m)
@@ -401,7 +401,7 @@ def test_a_slow_reference_is_moved_to_the_present_with_the_estimated_velocity() 
         out = hub.update(t, samples, [north, east, 0.3], [0.01, 0.01, 1e-6], velocity)
         if k > 10:
             assert out.position_available
-            lags.append(math.hypot(out.y_n[0] - north, out.y_n[1] - east))
+            lags.append(math.hypot(out.y_ned[0] - north, out.y_ned[1] - east))
     assert max(lags) < 0.01  # [m] (a few mm of the geodetic round trip); without the propagation 0.9 × 1.12 m
 
 
@@ -420,7 +420,7 @@ def test_a_reference_back_after_dead_reckoning_is_judged_against_a_grown_uncerta
     scene.step(10)
     assert hub._out.position_available and hub.state_of("gnss1") is SensorState.OK
     assert hub._tracks["gnss1"].rejected_samples == 0
-    assert abs(hub._out.y_n[0]) < 1.0  # starts at the prediction (the origin), the 5 m faded in over switch_blend_s
+    assert abs(hub._out.y_ned[0]) < 1.0  # starts at the prediction (the origin), the 5 m faded in over switch_blend_s
 
 
 def test_without_the_growth_the_same_return_is_rejected() -> None:
