@@ -43,7 +43,7 @@ from dpcontrol.guidance import Reference, ReferenceModel
 from dpcontrol.runtime.alarms import AlarmRegistry, Severity
 from dpcontrol.runtime.consequence import ConsequenceMonitor, ConsequenceReport
 from dpcontrol.runtime.deviation import DeviationMonitor
-from dpcontrol.runtime.estimators import WAVE_FILTER_KINDS, MassAdaptiveEstimator, make_estimator
+from dpcontrol.runtime.estimators import MassAdaptiveEstimator, make_estimator
 from dpcontrol.runtime.hub import HubOutput, SensorHub
 from dpcontrol.runtime.thruster_monitor import ThrusterFeedback, ThrusterMonitor
 from interfaces.messages import Measurement
@@ -188,7 +188,7 @@ class DpController:
             else (0.0, "hold_heading" if fb.position_loss == "dead_reckoning" else fb.position_loss)
         # MRAC supervision (_supervise): an estimate on a projection bound stops the adaptation
         self._mrac = self.controller.mass_adaptation
-        if self._mrac is not None and self._mrac.adapting and config.estimator.kind in WAVE_FILTER_KINDS:
+        if self._mrac is not None and self._mrac.adapting and self.estimator.force_model:
             self._mass_adaptive = MassAdaptiveEstimator(self.estimator, np.diag(vessel.mass_matrix))
             self.estimator = self._mass_adaptive
         self.thrusters = vessel.thrusters
