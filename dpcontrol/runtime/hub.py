@@ -1004,14 +1004,20 @@ class SensorHub:
 
     def _maybe_release(self, t_s: float) -> None:
         """Every heading reference compared has agreed with the rate again for ``rot_check_return_s``: the
-        rejected gyro or the blamed rate is taken back and the alarm clears."""
+        rejected gyro or the blamed rate is taken back and the alarm clears. With none compared (every gyro lost)
+        the verdict stands: a rate blamed a moment ago is not dead-reckoned on because nothing contradicts it now,
+        and a rejected gyro that returns is taken back only when it agrees in rate again."""
         return_s = self.config.rot_check_return_s
+        compared = False
         for track in self._heading:
             check = track.check
-            if check is not None and check.count > 1 and \
-                    (check.agree_since_t_s is None or t_s - check.agree_since_t_s < return_s):
+            if check is None or check.count <= 1:
+                continue
+            if check.agree_since_t_s is None or t_s - check.agree_since_t_s < return_s:
                 return
-        self._release(t_s)
+            compared = True
+        if compared:
+            self._release(t_s)
 
     def _release(self, t_s: float) -> None:
         """The rate check's verdict ends: rejected gyros and a blamed rate are taken back."""
@@ -1308,24 +1314,29 @@ class SensorHub:
             d_north, d_east = lever_arm_ned(arm_x, arm_y, heading)
             north -= d_north
             east -= d_east
-        self._common_tests(track, t_s, (north, east), predicted, variance)
+        self._common_tests(track, t_s, (north, east), predicted, variance, raw=track.antenna)
 
     def _common_tests(self, track: _SensorTrack, t_s: float, value: tuple[float, float],
-                      predicted: Sequence[float] | None, variance: Sequence[float] | None) -> None:
+                      predicted: Sequence[float] | None, variance: Sequence[float] | None, *,
+                      raw: tuple[float, float] | None = None) -> None:
         """Freeze, prediction and variance tests of one sample: NED ``(north_m, east_m)`` or
-        ``(psi_rad, 0)``; an accepted sample updates the reference's low-passed level."""
+        ``(psi_rad, 0)``; an accepted sample updates the reference's low-passed level. ``raw``: the sample as the
+        sensor gave it (a GNSS antenna's position, before the lever arm is taken off with the current heading),
+        which is what a frozen sensor repeats; None: ``value``."""
         cfg = self.config
         heading = track.heading
         v0, v1 = value
         track.samples += 1
         track.last_t_s = t_s
         track.value = value
-        # Freeze: identical raw values while time advances.
+        # Freeze: identical raw values while time advances (the antenna's: with a lever arm the corrected value
+        # of a frozen receiver moves with the vessel's yaw)
         tolerance = cfg.freeze_tolerance_rad if heading else cfg.freeze_tolerance_m
         previous = track.raw_previous
-        track.raw_previous = value
-        if previous is not None and abs(ssa(v0 - previous[0]) if heading else v0 - previous[0]) <= tolerance \
-                and abs(v1 - previous[1]) <= tolerance:
+        current = value if raw is None else raw
+        track.raw_previous = current
+        if previous is not None and abs(ssa(current[0] - previous[0]) if heading else current[0] - previous[0]) \
+                <= tolerance and abs(current[1] - previous[1]) <= tolerance:
             if track.frozen_since_t_s is None:
                 track.frozen_since_t_s = t_s - track.nominal_period_s
         else:
@@ -1337,7 +1348,7 @@ class SensorHub:
             return
         last_accepted = track.last_accepted_t_s
         if track.rejecting_since_t_s is not None and variance is not self._base_variance and previous is not None \
-                and _distance(value, previous, heading) <= (cfg.heading_jump_min_rad if heading else cfg.jump_min_m):
+                and _distance(current, previous, heading) <= (cfg.heading_jump_min_rad if heading else cfg.jump_min_m):
             # A reference being rejected that has not stepped since: its jump persists. Judged against the
             # filter's own variance, not the one grown by dead reckoning — that growth is the estimate's
             # uncertainty about a reference that was *absent*, and would let a persisting jump in after a while.
