@@ -17,6 +17,7 @@ Usage::
     OPENBLAS_NUM_THREADS=1 nice -n 10 .venv/bin/python benchmarks/example_weather.py --seeds 0 1 2 3 4 5 6 7
     OPENBLAS_NUM_THREADS=1 nice -n 10 .venv/bin/python benchmarks/example_weather.py --seeds 0 --vessels blue_lady
     ... --allocation '{"slack_weight": 1e4, "slack_penalty": 1e4}'     # without heading priority
+    ... --vessels supply --control '{"kind": "pid"}'                 # another controller (here the plain PID)
 """
 
 from __future__ import annotations
@@ -41,9 +42,11 @@ TURN_DEG = 20.0  # the turn: up to this, either way
 DURATION_S = 1200.0  # a full-scale vessel's run; Froude-scaled below 76.2 m [s]
 
 
-def case(vessel: str, seed: int, allocation: dict[str, Any] | None = None) -> tuple[dict[str, Any], float]:
+def case(vessel: str, seed: int, allocation: dict[str, Any] | None = None,
+         control: dict[str, Any] | None = None) -> tuple[dict[str, Any], float]:
     """The scenario mapping of (vessel, seed) and its duration [s]; ``allocation`` replaces the example's
-    ``allocation:`` section (e.g. equal slack weights, to see what heading priority does)."""
+    ``allocation:`` section (e.g. equal slack weights, to see what heading priority does), ``control`` its
+    ``control:`` section."""
     scenario = yaml.safe_load((ROOT / "sim_plant" / "scenarios" / VESSELS[vessel][0]).read_text(encoding="utf-8"))
     length = float(parse_scenario(scenario, file=VESSELS[vessel][0]).vessel.length_m)
     rng = np.random.default_rng([list(VESSELS).index(vessel), seed, 1])  # (1: not the sea's own stream)
@@ -61,12 +64,15 @@ def case(vessel: str, seed: int, allocation: dict[str, Any] | None = None) -> tu
     scenario["controller"] = {key: config[key] for key in (*CONTROLLER_SECTIONS, "deviation") if key in config}
     if allocation is not None:
         scenario["controller"]["allocation"] = allocation
+    if control is not None:
+        scenario["controller"]["control"] = control
     return scenario, duration
 
 
-def run(vessel: str, seed: int, allocation: dict[str, Any] | None = None) -> str:
+def run(vessel: str, seed: int, allocation: dict[str, Any] | None = None,
+        control: dict[str, Any] | None = None) -> str:
     """One run; the line it prints."""
-    scenario, duration = case(vessel, seed, allocation)
+    scenario, duration = case(vessel, seed, allocation, control)
     simulation = build_simulation(parse_scenario(scenario, file=scenario["name"]))
     watch, position, heading = deviation_watch(simulation)
     start = time.perf_counter()
@@ -87,10 +93,13 @@ def main() -> int:
     parser.add_argument("--allocation", type=json.loads,
                         help='an allocation section replacing the example\'s (JSON), e.g. equal slack weights: '
                              '\'{"slack_weight": 1e4, "slack_penalty": 1e4}\'')
+    parser.add_argument("--control", type=json.loads,
+                        help='a control section replacing the example\'s (JSON), e.g. the plain PID: '
+                             '\'{"kind": "pid"}\'')
     args = parser.parse_args()
     for seed in args.seeds:
         for vessel in args.vessels:
-            print(run(vessel, seed, args.allocation), flush=True)
+            print(run(vessel, seed, args.allocation, args.control), flush=True)
     return 0
 
 
