@@ -16,8 +16,8 @@ Anti-windup (integrator mode) uses the force the allocator reports as achieved
 (:meth:`PidController.notify_achieved`), and acts only where the low-frequency demand is beyond capability.
 The command carries the wave-frequency part of the feedback (with an estimator that filters no waves, all of
 it); its peaks are cut by the thrust limits and the drives' rate limits while the low-frequency demand is
-well within capability. Anti-windup at every cut peak would bleed the integral (the mean of a clipped
-oscillation is below its centre) and hold the vessel off station (docs/configuration.md, "The PID's
+well within capability. Anti-windup at every cut peak would bleed the integral (the mean of an
+oscillation clipped on one side lies off its centre) and hold the vessel off station (docs/configuration.md, "The PID's
 anti-windup"). Per DOF, with the shortfall ``s = τ_achieved − τ_commanded``:
 
 * the saturation side ``sign(s)`` (0 when met) is low-passed with the time constant ``T_t`` into ``d̄``;
