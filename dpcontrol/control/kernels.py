@@ -65,6 +65,7 @@ COUPLE_INERTIA, COUPLE_ROTATION, COUPLE_CORIOLIS, COUPLE_DAMPING, COUPLE_DRAG = 
 S_Y_M, S_YD_M, S_A2, S_A1, S_COMMAND, S_ACHIEVED, S_FLAGS, S_REST = range(8)
 S_ROWS = 8
 OUT_TAU, OUT_ERROR, OUT_VELOCITY_ERROR, OUT_PARAMETERS = 0, 3, 6, 9
+OUT_REFERENCE_MODEL = OUT_PARAMETERS + 6  # y_M, the last three of the parameters
 OUT_SIZE = 18
 
 #: :func:`mrac_step`'s return value for an input that is not 3 finite numbers: ``ERROR_INPUT - k`` for the

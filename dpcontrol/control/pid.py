@@ -323,7 +323,7 @@ class PidController:
         """The integral force ``τ_I`` [N, N, N·m] (copy)."""
         return self._state[P_INTEGRAL].copy()
 
-    def step(self, dt_s: float, eta_hat_n: np.ndarray, nu_hat_b: np.ndarray, bias_hat_b: np.ndarray | None,
+    def step(self, dt_s: float, eta_hat_ned: np.ndarray, nu_hat_b: np.ndarray, bias_hat_b: np.ndarray | None,
              reference: Reference, *, dof_enabled: Sequence[bool] = ALL_DOFS,
              tau_wind_ff_b: np.ndarray | None = None) -> ControlOutput:
         """One control period.
@@ -332,7 +332,7 @@ class PidController:
         ----------
         dt_s : float
             Time since the previous step [s] (> 0).
-        eta_hat_n : array_like, shape (3,)
+        eta_hat_ned : array_like, shape (3,)
             LF pose estimate ``[north_m, east_m, psi_rad]``.
         nu_hat_b : array_like, shape (3,)
             LF body velocity estimate ``[m/s, m/s, rad/s]``.
@@ -360,15 +360,16 @@ class PidController:
         result = ERROR_INPUT
         if mask >= 0:
             try:
-                result = pid_step(dt, eta_hat_n, nu_hat_b, bias, wind, reference.eta_d_n, reference.eta_dot_d_n,
-                                  reference.eta_ddot_d_n, mask, self._structure, self._gains, self._state, out)
+                result = pid_step(dt, eta_hat_ned, nu_hat_b, bias, wind, reference.eta_d_ned, reference.eta_dot_d_ned,
+                                  reference.eta_ddot_d_ned, mask, self._structure, self._gains, self._state, out)
             except TypeError:
                 result = ERROR_INPUT
         if result < 0:  # the arguments checked in order and converted: the first invalid one raises
             eta, nu, mask, bias, wind = checked_state_inputs(
-                eta_hat_n, nu_hat_b, dof_enabled, bias_hat_b=bias_hat_b, tau_wind_ff_b=tau_wind_ff_b, zero3=self._zero3)
+                eta_hat_ned, nu_hat_b, dof_enabled, bias_hat_b=bias_hat_b, tau_wind_ff_b=tau_wind_ff_b,
+                zero3=self._zero3)
             vectors = [np.array(v, dtype=float).reshape(-1) for v in
-                       (reference.eta_d_n, reference.eta_dot_d_n, reference.eta_ddot_d_n)]
+                       (reference.eta_d_ned, reference.eta_dot_d_ned, reference.eta_ddot_d_ned)]
             if any(v.size < 3 for v in vectors):
                 raise IndexError("reference vectors must have 3 entries (north, east, heading)")
             eta_d, eta_dot_d, eta_ddot_d = vectors

@@ -553,7 +553,7 @@ class HubOutput:
 
     Attributes
     ----------
-    y_n : list of float
+    y_ned : list of float
         Fused measurement [north_m, east_m, psi_rad] (NED; heading wrapped).
     measured : tuple of bool
         Which of (north, east, heading) carry a new sample this step.
@@ -581,7 +581,7 @@ class HubOutput:
         reckoning). The hub accepted them again; the caller re-initialises the estimator there.
     """
 
-    y_n: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    y_ned: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
     measured: tuple[bool, bool, bool] = (False, False, False)
     position_available: bool = False
     heading_available: bool = False
@@ -705,8 +705,8 @@ class SensorHub:
         if rate is not None:
             rate.disconnected = disconnected
 
-    def update(self, t_s: float, measurements: Iterable[Measurement], predicted_y_n: Sequence[float] | None,
-               predicted_variance: Sequence[float] | None, velocity_n: Sequence[float] | None = None) -> HubOutput:
+    def update(self, t_s: float, measurements: Iterable[Measurement], predicted_y_ned: Sequence[float] | None,
+               predicted_variance: Sequence[float] | None, velocity_ned: Sequence[float] | None = None) -> HubOutput:
         """Ingest the measurements received since the last step and fuse them.
 
         Parameters
@@ -715,12 +715,12 @@ class SensorHub:
             Current time [s].
         measurements : iterable of Measurement
             New valid measurements, in receive order.
-        predicted_y_n : sequence of 3 floats or None
+        predicted_y_ned : sequence of 3 floats or None
             The wave filter's predicted measurement [north_m, east_m, psi_rad] for this step (None
             before the estimator is initialised: the prediction test is skipped).
         predicted_variance : sequence of 3 floats or None
             Innovation variances of that prediction [m², m², rad²].
-        velocity_n : sequence of 2 floats or None
+        velocity_ned : sequence of 2 floats or None
             Estimated LF velocity in NED [m/s], to move slower references' latest samples to ``t_s``.
         """
         last = self._last_update_t_s
@@ -735,7 +735,7 @@ class SensorHub:
         if predicted_variance is not None and \
                 (self._position_lost_since is not None or self._heading_lost_since is not None):
             predicted_variance = self._dead_reckoning_variance(t_s, predicted_variance)
-        self._ingest(measurements, predicted_y_n, predicted_variance)
+        self._ingest(measurements, predicted_y_ned, predicted_variance)
         if self._checks:
             self._rate_check(t_s, dt)
         if self._velocity_seen:
@@ -772,19 +772,19 @@ class SensorHub:
             self._median_one(healthy_heading, t_s, heading=True)
         # After a loss the references come back to an estimator that dead-reckoned: its prediction is the
         # anchor the step is faded from (not after a reset, which is there to trust the references).
-        pos_new = self._fuse_position(t_s, velocity_n, None if out.position_reset else predicted_y_n,
+        pos_new = self._fuse_position(t_s, velocity_ned, None if out.position_reset else predicted_y_ned,
                                       healthy_position)
-        head_new = self._fuse_heading(t_s, None if out.heading_reset else predicted_y_n, healthy_heading)
+        head_new = self._fuse_heading(t_s, None if out.heading_reset else predicted_y_ned, healthy_heading)
         out.measured = (pos_new, pos_new, head_new)
         if self._velocity_seen:
-            self._velocity_dead_reckoning(t_s, predicted_y_n)
+            self._velocity_dead_reckoning(t_s, predicted_y_ned)
         out.yaw_rate_radps = self._yaw_rate
         if self._rates:
-            self._rate_of_turn(t_s, dt, head_new, predicted_y_n)
+            self._rate_of_turn(t_s, dt, head_new, predicted_y_ned)
         self._availability(t_s)
         return out
 
-    def _ingest(self, measurements: Iterable[Measurement], predicted_y_n: Sequence[float] | None,
+    def _ingest(self, measurements: Iterable[Measurement], predicted_y_ned: Sequence[float] | None,
                 predicted_variance: Sequence[float] | None) -> None:
         """Each measurement to its reference's tests (or its rate source), in receive order."""
         tracks = self._tracks
@@ -800,14 +800,14 @@ class SensorHub:
                 continue
             if track.heading:
                 if isinstance(message, Heading):
-                    self._common_tests(track, measurement.t_s, (ssa(message.heading_rad), 0.0), predicted_y_n,
+                    self._common_tests(track, measurement.t_s, (ssa(message.heading_rad), 0.0), predicted_y_ned,
                                        predicted_variance)
                 elif isinstance(message, RateOfTurn):
                     self._yaw_rate = message.rate_radps
                     if track.rate is not None:
                         self._ingest_rate(track.rate, measurement.t_s, message.rate_radps)
             elif isinstance(message, PositionFix):
-                self._ingest_position(track, measurement.t_s, message, predicted_y_n, predicted_variance)
+                self._ingest_position(track, measurement.t_s, message, predicted_y_ned, predicted_variance)
             elif isinstance(message, CourseOverGround):
                 self._ingest_velocity(track, measurement.t_s, message)
             elif isinstance(message, PositionErrorStats):
@@ -1121,9 +1121,9 @@ class SensorHub:
                 sigma_v * sigma_v * dt * dt
             base = self._base_variance
             s_north, s_east = (base[0], base[1]) if base is not None else (variance, variance)
-            y_n = out.y_n
-            y_n[0] = predicted[0] + _update_weight(s_north, variance) * (north - predicted[0])
-            y_n[1] = predicted[1] + _update_weight(s_east, variance) * (east - predicted[1])
+            y_ned = out.y_ned
+            y_ned[0] = predicted[0] + _update_weight(s_north, variance) * (north - predicted[0])
+            y_ned[1] = predicted[1] + _update_weight(s_east, variance) * (east - predicted[1])
             out.measured = (True, True, out.measured[2])
             out.position_velocity_source = track.name
             out.position_dr_sigma_m = math.sqrt(variance)
@@ -1177,7 +1177,7 @@ class SensorHub:
         """A fresh fused heading: the dead reckoning starts again from it, combined with the estimator's prediction
         (prior variance P = S − R, the measurement's R = 1/Σw): one gyro sample's noise (0.05°) would otherwise
         stay in the dead-reckoned heading as an offset, where the filtered estimate is within a few 0.01°."""
-        measured = self._out.y_n[2]
+        measured = self._out.y_ned[2]
         noise = 1.0 / self._heading_weight
         base = self._base_variance
         if predicted is None or base is None:
@@ -1252,7 +1252,7 @@ class SensorHub:
         variance = self._dr_var0 + self._dr_noise_var + self._dr_bias_sd * self._dr_bias_sd
         base = self._base_variance
         innovation = base[2] if base is not None else variance
-        out.y_n[2] = ssa(predicted[2] + _update_weight(innovation, variance) * ssa(self._dr_heading - predicted[2]))
+        out.y_ned[2] = ssa(predicted[2] + _update_weight(innovation, variance) * ssa(self._dr_heading - predicted[2]))
         out.measured = (out.measured[0], out.measured[1], True)
         out.heading_rate_source = source.name
         out.heading_dr_sigma_rad = math.sqrt(variance)
@@ -1656,7 +1656,7 @@ class SensorHub:
         return (sum(w * v[0] for v, w in zip(values, weights, strict=True)) / total,
                 sum(w * v[1] for v, w in zip(values, weights, strict=True)) / total)
 
-    def _fuse_position(self, t_s: float, velocity_n: Sequence[float] | None, anchor: Sequence[float] | None,
+    def _fuse_position(self, t_s: float, velocity_ned: Sequence[float] | None, anchor: Sequence[float] | None,
                        healthy: list[_SensorTrack]) -> bool:
         for track in self._position:
             track.weight = 0.0
@@ -1666,7 +1666,7 @@ class SensorHub:
             return False
         weights = self._weights(usable)
         total = sum(weights)
-        vn, ve = (velocity_n[0], velocity_n[1]) if velocity_n is not None else (0.0, 0.0)
+        vn, ve = (velocity_ned[0], velocity_ned[1]) if velocity_ned is not None else (0.0, 0.0)
         north = east = 0.0
         fresh = False
         for track, weight in zip(usable, weights, strict=True):
@@ -1709,9 +1709,9 @@ class SensorHub:
             decay = self._decay
             offset[0] *= decay
             offset[1] *= decay
-        y_n = self._out.y_n
-        y_n[0] = north + offset[0]
-        y_n[1] = east + offset[1]
+        y_ned = self._out.y_ned
+        y_ned[0] = north + offset[0]
+        y_ned[1] = east + offset[1]
         self._out.position_sigma_m = 1.0 / math.sqrt(total)
         return fresh
 
@@ -1755,7 +1755,7 @@ class SensorHub:
             self._heading_offset *= self._decay
         fused = ssa(heading + self._heading_offset)
         self._last_heading = fused
-        self._out.y_n[2] = fused
+        self._out.y_ned[2] = fused
         return fresh
 
     def _availability(self, t_s: float) -> None:

@@ -166,4 +166,4 @@ def test_with_two_gyros_the_one_that_drifts_is_rejected_and_the_other_used() -> 
     assert run.hub.state_of("gyro2") is SensorState.REJECTED and run.hub.state_of("gyro1") is SensorState.OK
     out = run.step(100)
     assert out.heading_available and run.hub.weight_of("gyro1") == 1.0
-    assert abs(math.degrees(ssa(out.y_n[2] - _truth(run.t)[0]))) < 0.5
+    assert abs(math.degrees(ssa(out.y_ned[2] - _truth(run.t)[0]))) < 0.5
