@@ -31,12 +31,15 @@ surge, sway, yaw along the last axis; the PID's layout is given with its constan
   (``COUPLE_*`` bits, κ of the damping bound (0: none), unused), ``C_DRAG`` the quadratic damping
   [N·s²/m², N·s²/m², N·m·s²], ``C_ENTRY_REST`` how long the reference model must have rested
   after an entry into DP before anything is learnt [s] (0: no wait) and ``C_GUIDED`` = (1.0: y_M is the
-  guidance's reference itself, 0.0: the second-order model (15) driven by it, unused, unused);
+  guidance's reference itself, 0.0: the second-order model (15) driven by it, unused, unused),
+  ``C_NOISE_FACTOR`` k and ``C_NOISE_TIME`` T_n [s] of the measured dead zone (:func:`dead_zone_width`);
 * ``state`` (``S_ROWS``, 3): ``S_Y_M``/``S_YD_M`` the reference model y_M, ẏ_M in NED [m, rad; m/s,
   rad/s], ``S_A2``/``S_A1`` the estimates â₂, â₁, ``S_COMMAND``/``S_ACHIEVED`` the last command and
   the force the allocator achieved for it [N, N, N·m], ``S_FLAGS`` = (reference model initialised,
   achieved force known, unused) and ``S_REST`` how long the reference model has rested (gate closed,
-  unbroken) since the entry, counted up to ``C_ENTRY_REST`` [s];
+  unbroken) since the entry, counted up to ``C_ENTRY_REST`` [s], ``S_NOISE`` the mean square of the
+  normalised error s̄ while the reference rests [m², m², rad²] and ``S_QUIET`` how long it has rested, counted
+  up to ``C_NOISE_TIME`` [s] (:func:`dead_zone_width`);
 * ``out`` (``OUT_SIZE``,): ``OUT_TAU`` τ [N, N, N·m], ``OUT_ERROR`` e_b = Rᵀ(ψ̂)(η̂ − y_M) [m, m, rad],
   ``OUT_VELOCITY_ERROR`` ė_b [m/s, m/s, rad/s] and ``OUT_PARAMETERS`` (â₂, â₁ after the adaptation,
   y_M before the advance: the order of ``PARAMETER_NAMES + REFERENCE_MODEL_NAMES``).
@@ -59,11 +62,13 @@ C_MASS = 20  # three rows: the nominal M (3×3) of the known coupling terms
 C_DAMPING = 23  # three rows: the nominal D with its diagonal zeroed (the off-diagonal damping)
 C_COUPLING = 26  # (COUPLE_* bit mask, κ of the damping bound, unused)
 C_DRAG = 27  # the quadratic damping coefficients of the optional drag term [N·s²/m², N·s²/m², N·m·s²]
-C_ROWS = 28
+C_NOISE_FACTOR = 28  # k of the measured dead zone d = max(d₀, k·s̄_rms) (0: the fixed d₀ only) [-]
+C_NOISE_TIME = 29  # the averaging time of s̄_rms at rest [s] (> 0)
+C_ROWS = 30
 #: ``C_COUPLING[0]`` bits: which known terms of the nominal model enter the law (see :func:`_known_coupling`)
 COUPLE_INERTIA, COUPLE_ROTATION, COUPLE_CORIOLIS, COUPLE_DAMPING, COUPLE_DRAG = 1, 2, 4, 8, 16
-S_Y_M, S_YD_M, S_A2, S_A1, S_COMMAND, S_ACHIEVED, S_FLAGS, S_REST = range(8)
-S_ROWS = 8
+S_Y_M, S_YD_M, S_A2, S_A1, S_COMMAND, S_ACHIEVED, S_FLAGS, S_REST, S_NOISE, S_QUIET = range(10)
+S_ROWS = 10
 OUT_TAU, OUT_ERROR, OUT_VELOCITY_ERROR, OUT_PARAMETERS = 0, 3, 6, 9
 OUT_REFERENCE_MODEL = OUT_PARAMETERS + 6  # y_M, the last three of the parameters
 OUT_SIZE = 18
@@ -193,6 +198,40 @@ def _clamp(x: float, lo: float, hi: float) -> float:
     """Python's ``min(max(x, lo), hi)``."""
     y = lo if lo > x else x
     return hi if hi < y else y
+
+
+@kernel(f8(f8_2d, f8_2d, i8, f8, f8, b1))
+def dead_zone_width(const: np.ndarray, state: np.ndarray, i: int, s_bar: float, dt: float, resting: bool) -> float:
+    """The dead zone of DOF ``i`` on ``s̄ = e + (g₂₂/g₁₂)ė`` [m, m, rad], sized from the error the weather causes.
+
+    The robust adaptive law's dead zone must exceed the tracking error that the bounded disturbance alone causes
+    (Ioannou & Sun, *Robust Adaptive Control*, §8.5.4: inside it the error carries no information about the
+    parameters, and adapting on it is what makes them drift). In DP that error — the residual wave-frequency
+    motion, the estimator's noise, the weather force the bias estimate has not taken up and its slow wander —
+    depends on the sea, not on the vessel alone, so it is measured: once the reference has rested for T_n
+    (``C_NOISE_TIME``, one reference-model period; ``resting``: the mass gate of eq. (21) closed and
+    ``|ẏ_M| ≤ v_min``) the law's model error no longer acts (it acts only through the reference's acceleration
+    and velocity, and the error dynamics (19) have settled within a period) and the error is all disturbance.
+    Its mean square is averaged there, ``s̄²_rms ← s̄²_rms + (1 − e^{−dt/T_n})(s̄² − s̄²_rms)``, and held
+    otherwise. The dead zone is ``d = max(d₀, k·s̄_rms)`` (k = ``C_NOISE_FACTOR``; 0: the fixed d₀ alone): a
+    Gaussian error exceeds k = 3 of its standard deviations (the RMS about zero, which includes its mean) with a
+    probability of 0.3 %, so what exceeds it in a move is the move's.
+
+    ``S_QUIET`` counts how long the reference has rested without a break, up to T_n [s].
+    """
+    factor = const[C_NOISE_FACTOR, i]
+    width = const[C_DEAD_ZONE, i]
+    if factor <= 0.0:
+        return width
+    settle = const[C_NOISE_TIME, i]
+    quiet = state[S_QUIET, i] + dt if resting else 0.0
+    state[S_QUIET, i] = quiet if quiet < settle else settle
+    mean_square = state[S_NOISE, i]
+    if quiet >= settle:
+        mean_square += (1.0 - math.exp(-dt / settle)) * (s_bar * s_bar - mean_square)
+        state[S_NOISE, i] = mean_square
+    measured = factor * math.sqrt(mean_square)
+    return measured if measured > width else width
 
 
 @kernel(f8(f8_2d, i8, f8))
@@ -367,10 +406,6 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
             if known and abs(achieved[i] - command[i]) > SATURATION_TOLERANCE * (1.0 + abs(command[i])):
                 continue  # the allocator could not deliver the last command: nothing to learn
             mass_before = a2[i]
-            # normalised error signal s̄ = bᵀGx / g₁₂ with a continuous dead zone, then bᵀGx = g₁₂ s̄_dz
-            s_bar = e_b[i] + const[C_G_RATIO, i] * ed_b[i]
-            excess = abs(s_bar) - const[C_DEAD_ZONE, i]
-            signal = const[C_G12, i] * math.copysign(excess, s_bar) if excess > 0.0 else 0.0
             # (21), each parameter only while the reference model excites it
             if flags[2] != 0.0:  # desired-compensation law: v_M = [ÿ_M, ẏ_M] instead of v = [z, ẏ]
                 v2 = ydd_b[i]
@@ -379,6 +414,11 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
                 v2 = z[i]
                 v1 = nu[i]
             gate = abs(ydd_b[i]) > const[C_ACCEL, i]
+            # normalised error signal s̄ = bᵀGx / g₁₂ with a continuous dead zone, then bᵀGx = g₁₂ s̄_dz
+            s_bar = e_b[i] + const[C_G_RATIO, i] * ed_b[i]
+            resting = not gate and abs(yd_b[i]) <= const[C_VELOCITY, i]
+            excess = abs(s_bar) - dead_zone_width(const, state, i, s_bar, dt, resting)
+            signal = const[C_G12, i] * math.copysign(excess, s_bar) if excess > 0.0 else 0.0
             rest = state[S_REST, i]
             if rest < const[C_ENTRY_REST, i]:  # since the entry the reference has not rested long enough
                 if gate:

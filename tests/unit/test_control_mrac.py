@@ -456,3 +456,54 @@ def test_the_adaptation_states_are_the_wire_vocabulary() -> None:
     from interfaces.zenoh.schemas import ADAPTATION_STATES as WIRE  # noqa: PLC0415
 
     assert ADAPTATION_STATES == WIRE
+
+
+def _weather_move(config: MracConfig, *, offset_m: float, wave_m: float) -> MracController:
+    """The supply vessel's guided MRAC with the vessel on its reference but for what the weather does: a surge
+    error of ``offset_m`` (the weather force the bias estimate has not taken up) plus ``wave_m`` of
+    wave-frequency motion (8 s), at rest for two reference-model periods and through a 15 m surge move. Nothing
+    about the mass is wrong: whatever the estimate learns is drift."""
+    controller = MracController(config)
+    guidance = ReferenceModel(default_reference_config(SUPPLY))
+    guidance.reset(np.zeros(3))
+    period = config.natural_period_s[0]
+    dt = 0.5
+    target = np.zeros(3)
+    t = 0.0
+    while t < 5.0 * period:
+        if t >= 2.0 * period:
+            target = np.array([15.0, 0.0, 0.0])
+        reference = guidance.step(dt, target)
+        wave = wave_m * math.sin(2.0 * math.pi * t / 8.0)
+        wave_rate = wave_m * 2.0 * math.pi / 8.0 * math.cos(2.0 * math.pi * t / 8.0)
+        eta = reference.eta_d_ned + np.array([offset_m + wave, 0.0, 0.0])
+        nu = reference.eta_dot_d_ned + np.array([wave_rate, 0.0, 0.0])
+        controller.step(dt, eta, nu, None, reference)
+        t += dt
+    return controller
+
+
+def test_the_dead_zone_measured_at_rest_keeps_the_weather_out_of_the_mass() -> None:
+    """The error the weather causes while the reference rests — here an offset of 0.7 m and 0.3 m of wave motion,
+    the supply vessel's station-keeping error in a 13.6 m/s wind — is what the law would take for inertia when the
+    reference accelerates through it. The dead zone sized from its RMS at rest (3 σ, measured after one period of
+    rest) keeps the estimate at the nominal mass; the fixed dead zone (0.02 % of L) lets it drift onto its
+    bound."""
+    config = default_mrac_config(SUPPLY, reference="guidance")
+    assert config.dead_zone_noise_factor == 3.0
+    measured = _weather_move(config, offset_m=0.7, wave_m=0.3)
+    assert measured.mass_at_bound() is None
+    assert abs(measured.mass_hat[0] / config.mass_nominal[0] - 1.0) < 0.01
+    fixed = _weather_move(dataclasses.replace(config, dead_zone_noise_factor=0.0), offset_m=0.7, wave_m=0.3)
+    assert fixed.mass_at_bound() == 0
+
+    # the key, and the measured level is part of the saved state
+    keyed = control_config_from_mapping({"kind": "mrac", "dead_zone_noise_factor": 0}, SUPPLY)
+    assert keyed.dead_zone_noise_factor == 0  # type: ignore[union-attr]
+    assert default_mrac_config(SUPPLY).dead_zone_noise_factor == 0.0  # seed 003's reference model: the fixed d₀
+    with pytest.raises(ConfigError, match=r"control\.dead_zone_noise_factor"):
+        control_config_from_mapping({"kind": "mrac", "dead_zone_noise_factor": -1}, SUPPLY)
+    restored = MracController(config)
+    restored.load_state_dict(json.loads(json.dumps(measured.state_dict())))
+    assert restored.state_dict() == measured.state_dict()
+    assert measured.state_dict()["dead_zone_mean_square"][0] > 0.5**2
