@@ -36,10 +36,11 @@ surge, sway, yaw along the last axis; the PID's layout is given with its constan
 * ``state`` (``S_ROWS``, 3): ``S_Y_M``/``S_YD_M`` the reference model y_M, ẏ_M in NED [m, rad; m/s,
   rad/s], ``S_A2``/``S_A1`` the estimates â₂, â₁, ``S_COMMAND``/``S_ACHIEVED`` the last command and
   the force the allocator achieved for it [N, N, N·m], ``S_FLAGS`` = (reference model initialised,
-  achieved force known, unused) and ``S_REST`` how long the reference model has rested (gate closed,
+  achieved force known, ``S_WEATHER`` started) and ``S_REST`` how long the reference model has rested (gate closed,
   unbroken) since the entry, counted up to ``C_ENTRY_REST`` [s], ``S_NOISE`` the mean square of the
-  normalised error s̄ while the reference rests [m², m², rad²] and ``S_QUIET`` how long it has rested, counted
-  up to ``C_NOISE_TIME`` [s] (:func:`dead_zone_width`);
+  normalised error s̄ while the reference rests [m², m², rad²], ``S_QUIET`` how long it has rested, counted
+  up to ``C_NOISE_TIME`` [s], and ``S_WEATHER`` the weather force compensated, ``w = b̂ + τ̂_wind``, low-passed
+  over ``C_NOISE_TIME`` [N, N, N·m] (:func:`dead_zone_width`);
 * ``out`` (``OUT_SIZE``,): ``OUT_TAU`` τ [N, N, N·m], ``OUT_ERROR`` e_b = Rᵀ(ψ̂)(η̂ − y_M) [m, m, rad],
   ``OUT_VELOCITY_ERROR`` ė_b [m/s, m/s, rad/s] and ``OUT_PARAMETERS`` (â₂, â₁ after the adaptation,
   y_M before the advance: the order of ``PARAMETER_NAMES + REFERENCE_MODEL_NAMES``).
@@ -67,8 +68,8 @@ C_NOISE_TIME = 29  # the averaging time of s̄_rms at rest [s] (> 0)
 C_ROWS = 30
 #: ``C_COUPLING[0]`` bits: which known terms of the nominal model enter the law (see :func:`_known_coupling`)
 COUPLE_INERTIA, COUPLE_ROTATION, COUPLE_CORIOLIS, COUPLE_DAMPING, COUPLE_DRAG = 1, 2, 4, 8, 16
-S_Y_M, S_YD_M, S_A2, S_A1, S_COMMAND, S_ACHIEVED, S_FLAGS, S_REST, S_NOISE, S_QUIET = range(10)
-S_ROWS = 10
+S_Y_M, S_YD_M, S_A2, S_A1, S_COMMAND, S_ACHIEVED, S_FLAGS, S_REST, S_NOISE, S_QUIET, S_WEATHER = range(11)
+S_ROWS = 11
 OUT_TAU, OUT_ERROR, OUT_VELOCITY_ERROR, OUT_PARAMETERS = 0, 3, 6, 9
 OUT_REFERENCE_MODEL = OUT_PARAMETERS + 6  # y_M, the last three of the parameters
 OUT_SIZE = 18
@@ -200,8 +201,9 @@ def _clamp(x: float, lo: float, hi: float) -> float:
     return hi if hi < y else y
 
 
-@kernel(f8(f8_2d, f8_2d, i8, f8, f8, b1))
-def dead_zone_width(const: np.ndarray, state: np.ndarray, i: int, s_bar: float, dt: float, resting: bool) -> float:
+@kernel(f8(f8_2d, f8_2d, i8, f8, f8, b1, f8, f8))
+def dead_zone_width(const: np.ndarray, state: np.ndarray, i: int, s_bar: float, dt: float, resting: bool,
+                    weather: float, stiffness: float) -> float:
     """The dead zone of DOF ``i`` on ``s̄ = e + (g₂₂/g₁₂)ė`` [m, m, rad], sized from the error the weather causes.
 
     The robust adaptive law's dead zone must exceed the tracking error that the bounded disturbance alone causes
@@ -213,9 +215,17 @@ def dead_zone_width(const: np.ndarray, state: np.ndarray, i: int, s_bar: float, 
     ``|ẏ_M| ≤ v_min``) the law's model error no longer acts (it acts only through the reference's acceleration
     and velocity, and the error dynamics (19) have settled within a period) and the error is all disturbance.
     Its mean square is averaged there, ``s̄²_rms ← s̄²_rms + (1 − e^{−dt/T_n})(s̄² − s̄²_rms)``, and held
-    otherwise. The dead zone is ``d = max(d₀, k·s̄_rms)`` (k = ``C_NOISE_FACTOR``; 0: the fixed d₀ alone): a
-    Gaussian error exceeds k = 3 of its standard deviations (the RMS about zero, which includes its mean) with a
-    probability of 0.3 %, so what exceeds it in a move is the move's.
+    otherwise: a Gaussian error exceeds k = 3 of its standard deviations (the RMS about zero, which includes its
+    mean) with a probability of 0.3 %.
+
+    What the rest does not show is the weather force that changes during a move: a turn swings a current or wind
+    force across the hull (in the body axes the law works in), the drag changes with ν − ν_c, and the bias
+    estimate takes the change up only with its lag, the error meanwhile growing to metres. The force compensated,
+    ``w = b̂ + τ̂_wind`` (``weather`` [N, N, N·m]), is low-passed over T_n into w̄ (``S_WEATHER``, at every step);
+    ``|w − w̄|``, the change of the last reference-model period, over the loop's stiffness ``P = â₂β₀``
+    (``stiffness``, seed 003 eq. (25)) is the error such a change causes.
+
+    The dead zone is ``d = max(d₀, k·s̄_rms + |w − w̄|/P)`` (k = ``C_NOISE_FACTOR``; 0: the fixed d₀ alone).
 
     ``S_QUIET`` counts how long the reference has rested without a break, up to T_n [s].
     """
@@ -230,7 +240,12 @@ def dead_zone_width(const: np.ndarray, state: np.ndarray, i: int, s_bar: float, 
     if quiet >= settle:
         mean_square += (1.0 - math.exp(-dt / settle)) * (s_bar * s_bar - mean_square)
         state[S_NOISE, i] = mean_square
-    measured = factor * math.sqrt(mean_square)
+    if state[S_FLAGS, 2] == 0.0:
+        state[S_WEATHER, i] = weather
+    mean = state[S_WEATHER, i]
+    mean += (1.0 - math.exp(-dt / settle)) * (weather - mean)
+    state[S_WEATHER, i] = mean
+    measured = factor * math.sqrt(mean_square) + abs(weather - mean) / stiffness
     return measured if measured > width else width
 
 
@@ -417,7 +432,8 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
             # normalised error signal s̄ = bᵀGx / g₁₂ with a continuous dead zone, then bᵀGx = g₁₂ s̄_dz
             s_bar = e_b[i] + const[C_G_RATIO, i] * ed_b[i]
             resting = not gate and abs(yd_b[i]) <= const[C_VELOCITY, i]
-            excess = abs(s_bar) - dead_zone_width(const, state, i, s_bar, dt, resting)
+            excess = abs(s_bar) - dead_zone_width(const, state, i, s_bar, dt, resting, bias[i] + wind[i],
+                                                  a2[i] * b0[i])
             signal = const[C_G12, i] * math.copysign(excess, s_bar) if excess > 0.0 else 0.0
             rest = state[S_REST, i]
             if rest < const[C_ENTRY_REST, i]:  # since the entry the reference has not rested long enough
@@ -440,6 +456,7 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
             a1[i] = _clamp(a1[i], const[C_A1_LO, i], damping_ceiling(const, i, a2[i]))
             if a2[i] != mass_before:
                 mass_changed = True
+        state[S_FLAGS, 2] = 1.0
     parameters = out[OUT_PARAMETERS:]
     for i in range(3):
         state[S_COMMAND, i] = tau[i]

@@ -49,15 +49,19 @@ from 1× to 3× the true mass in 12 h of station keeping). This implementation u
   rad]: no adaptation while ``|s̄| ≤ d`` and ``s̄ − d·sign(s̄)`` outside (continuous). ``d = d₀`` (fixed, 0.02 % of
   L) or, with ``dead_zone_noise_factor`` k > 0 (the default with ``reference: guidance``), sized from the
   disturbance as robust adaptive control prescribes (Ioannou & Sun, *Robust Adaptive Control*, §8.5.4):
-  ``d = max(d₀, k·s̄_rms)``, ``s̄_rms`` the RMS of s̄ measured once the reference has rested a reference-model
-  period (the error is then all weather: waves, estimator noise, the force the bias estimate has not taken up),
-  k = 3 (:func:`~dpcontrol.control.kernels.dead_zone_width`). The supply vessel's station-keeping error in a sea is
-  tenths of a metre (0.23 m rms, 0.56 m at the start of a move, in 13.6 m/s of wind and 0.7 m/s of current); the
-  fixed d₀ (1.5 cm for her) let the law take it for inertia the moment the reference accelerated and run the
-  estimate onto its bound within 13 s. With seed 003's reference model (the tanker) it is off by default: in the
-  loading tanker's excerpt (``tests/closed_loop/test_seed003.py``) it slows the learning of the 2.4× mass error
-  past seed 003's 0.5 m (0.53 m in the third correction with k = 3; with k = 2 the estimate is 17 % low at
-  45 min);
+  ``d = max(d₀, k·s̄_rms + |w − w̄|/P)``, ``s̄_rms`` the RMS of s̄ measured once the reference has rested a
+  reference-model period (the error is then all weather: waves, estimator noise, the force the bias estimate has
+  not taken up), k = 3, and ``|w − w̄|/P`` the change of the compensated weather force ``w = b̂ + τ̂_wind`` over
+  the last period through the PD's stiffness ``P = â₂β₀`` — the error the bias estimate's lag leaves while a
+  turn swings a current or wind force across the hull (:func:`~dpcontrol.control.kernels.dead_zone_width`).
+  The supply vessel's station-keeping error in a sea is tenths of a metre (0.23 m rms, 0.56 m at the start of a
+  move, in 13.6 m/s of wind and 0.7 m/s of current); the fixed d₀ (1.5 cm for her) let the law take it for
+  inertia the moment the reference accelerated and run the estimate onto its bound within 13 s; in a turn in
+  0.7 m/s of current the bias estimate changes by 40–50 kN within a minute and its lag leaves her 1.3–2.5 m
+  behind the reference. With seed 003's reference model (the tanker) it is off by default: in the loading
+  tanker's excerpt (``tests/closed_loop/test_seed003.py``) the bias estimate also takes up her inertia error and
+  the measured dead zone slows the learning of the 2.4× mass error past seed 003's 0.5 m (0.53 m in the third
+  correction with the rest term alone, k = 3);
 * **projection** of ``â₂`` onto ``[0.3, 5] × m_nominal`` and of ``â₁`` onto
   ``[0, max(20 c_nominal, m_nominal β₁)]`` (physical bounds: a vessel neither loses 70 % of
   its mass nor quintuples it), so that whatever drift is left stays bounded. Where â₁ adapts
@@ -274,8 +278,9 @@ class MracConfig:
     dead_zone : 3 floats
         d₀ on ``s̄ = e + (g₂₂/g₁₂)ė`` [m, m, rad] (>= 0): the least dead zone.
     dead_zone_noise_factor : float
-        k of the measured dead zone ``d = max(d₀, k·s̄_rms)``, ``s̄_rms`` the RMS of s̄ while the reference rests,
-        averaged over one reference-model period (>= 0; 0: the fixed d₀ alone;
+        k of the measured dead zone ``d = max(d₀, k·s̄_rms + |w − w̄|/P)``, ``s̄_rms`` the RMS of s̄ once the
+        reference has rested one reference-model period, ``|w − w̄|/P`` the change of the weather force compensated
+        over that period through the PD's stiffness (>= 0; 0: the fixed d₀ alone;
         :func:`dpcontrol.control.kernels.dead_zone_width`).
     accel_threshold : 3 floats
         ``a_min``: â₂ adapts only while ``|ÿ_M| > a_min`` [m/s², m/s², rad/s²] (>= 0).
@@ -935,6 +940,7 @@ class MracController:
         state[S_COMMAND] = 0.0
         state[S_FLAGS, 1] = 0.0
         state[S_REST] = 0.0  # the entry's glide teaches nothing: learn after entry_rest_s of rest
+        state[S_FLAGS, 2] = 0.0  # the weather force's mean starts again at the next step's
         self._excited_at_s[:] = (-math.inf, -math.inf, -math.inf)  # a new entry has learnt nothing yet
 
     def reset_parameters(self) -> None:

@@ -458,27 +458,35 @@ def test_the_adaptation_states_are_the_wire_vocabulary() -> None:
     assert ADAPTATION_STATES == WIRE
 
 
-def _weather_move(config: MracConfig, *, offset_m: float, wave_m: float) -> MracController:
+def _weather_move(config: MracConfig, *, offset_m: float, wave_m: float, force_change_n: float = 0.0
+                  ) -> MracController:
     """The supply vessel's guided MRAC with the vessel on its reference but for what the weather does: a surge
     error of ``offset_m`` (the weather force the bias estimate has not taken up) plus ``wave_m`` of
-    wave-frequency motion (8 s), at rest for two reference-model periods and through a 15 m surge move. Nothing
-    about the mass is wrong: whatever the estimate learns is drift."""
+    wave-frequency motion (8 s), at rest for two reference-model periods and through a 15 m surge move. During the
+    move the weather force changes by ``force_change_n`` over one period (a turn swings it across the hull), the
+    bias estimate follows with a lag of half a period and the error is the force not yet taken up over the PD's
+    stiffness P = m β₀. Nothing about the mass is wrong: whatever the estimate learns is drift."""
     controller = MracController(config)
     guidance = ReferenceModel(default_reference_config(SUPPLY))
     guidance.reset(np.zeros(3))
     period = config.natural_period_s[0]
+    stiffness = config.mass_nominal[0] * float(config.beta0[0])
     dt = 0.5
     target = np.zeros(3)
+    bias = np.zeros(3)
+    force = 0.0
     t = 0.0
     while t < 5.0 * period:
         if t >= 2.0 * period:
             target = np.array([15.0, 0.0, 0.0])
+            force = force_change_n * min((t - 2.0 * period) / period, 1.0)
+        bias[0] += (1.0 - math.exp(-dt / (0.5 * period))) * (force - bias[0])
         reference = guidance.step(dt, target)
         wave = wave_m * math.sin(2.0 * math.pi * t / 8.0)
         wave_rate = wave_m * 2.0 * math.pi / 8.0 * math.cos(2.0 * math.pi * t / 8.0)
-        eta = reference.eta_d_ned + np.array([offset_m + wave, 0.0, 0.0])
+        eta = reference.eta_d_ned + np.array([offset_m + (force - bias[0]) / stiffness + wave, 0.0, 0.0])
         nu = reference.eta_dot_d_ned + np.array([wave_rate, 0.0, 0.0])
-        controller.step(dt, eta, nu, None, reference)
+        controller.step(dt, eta, nu, bias.copy(), reference)
         t += dt
     return controller
 
@@ -507,3 +515,17 @@ def test_the_dead_zone_measured_at_rest_keeps_the_weather_out_of_the_mass() -> N
     restored.load_state_dict(json.loads(json.dumps(measured.state_dict())))
     assert restored.state_dict() == measured.state_dict()
     assert measured.state_dict()["dead_zone_mean_square"][0] > 0.5**2
+
+
+def test_the_dead_zone_widens_with_the_weather_force_that_changes_in_a_move() -> None:
+    """A move that swings the weather (−40 kN over one period, taken up by the bias estimate with a lag of half a
+    period) with no error at rest: the dead zone's weather term |w − w̄|/P keeps the estimate off its bound; the
+    fixed dead zone lets the law take the lag for inertia and runs it onto the bound. (The term lags the error at
+    the start of the change — w̄ follows the ramp more slowly than the error rises — so some drift is left.)"""
+    config = default_mrac_config(SUPPLY, reference="guidance")
+    measured = _weather_move(config, offset_m=0.0, wave_m=0.0, force_change_n=-40e3)
+    assert measured.mass_at_bound() is None
+    assert measured.mass_hat[0] / config.mass_nominal[0] > 0.6
+    fixed = _weather_move(dataclasses.replace(config, dead_zone_noise_factor=0.0), offset_m=0.0, wave_m=0.0,
+                          force_change_n=-40e3)
+    assert fixed.mass_at_bound() == 0
