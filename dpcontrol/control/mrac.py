@@ -281,7 +281,10 @@ class MracConfig:
         k of the measured dead zone ``d = max(d₀, k·s̄_rms + |w − w̄|/P)``, ``s̄_rms`` the RMS of s̄ once the
         reference has rested one reference-model period, ``|w − w̄|/P`` the change of the weather force compensated
         over that period through the PD's stiffness (>= 0; 0: the fixed d₀ alone;
-        :func:`dpcontrol.control.kernels.dead_zone_width`).
+        :func:`dpcontrol.control.kernels.dead_zone_width`). Not for a vessel whose mass changes: a wrong mass
+        shows in both measures too (the bias estimate takes up the inertia error of a move, a too-soft PD lets
+        the weather move her more at rest), and the dead zone then holds the estimate back — 0 for a loading
+        tanker on the guided reference (docs/campaigns.md).
     accel_threshold : 3 floats
         ``a_min``: â₂ adapts only while ``|ÿ_M| > a_min`` [m/s², m/s², rad/s²] (>= 0).
     velocity_threshold : 3 floats
