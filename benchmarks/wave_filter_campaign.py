@@ -20,9 +20,9 @@ vessel with ``scale = min(1, L/76.2 m)`` (the supply vessel's length; a shorter 
 JONSWAP Hs uniform in 0.5–4 m × scale, peak ωp uniform in 0.35–1.3 rad/s / √scale (CyberShip II × 7.8:
 2.7–10.1 rad/s; the Blue Lady × 2.35), γ uniform in 1–5 (spectral width), direction uniform over the whole circle
 relative to the heading; current 0–0.5 m/s × √scale toward a random direction; wind 0–12 m/s × √scale from within
-±45° of the waves. ``--full-scale-periods`` keeps ωp in 0.35–1.3 rad/s for every vessel (the campaign before
-2026-12-07: a model in seas of full-scale period, where CyberShip II's yaw loop lies inside the wave band); the
-draws are the same, only ωp differs. The plant models one wave system at a time, so a swell plus wind sea is not
+±45° of the waves. ``--full-scale-periods`` keeps ωp in 0.35–1.3 rad/s for every vessel (a model in seas of
+full-scale period, where CyberShip II's yaw loop lies inside the wave band); the draws are the same, only ωp
+differs. The plant models one wave system at a time, so a swell plus wind sea is not
 yet drawn (see docs/wave-filter.md).
 
 The estimators: ``mmae`` with the example's grid when it has one (a vessel of at least 76.2 m; with
@@ -36,7 +36,11 @@ Usage::
     nice -n 10 .venv/bin/python benchmarks/wave_filter_campaign.py --seeds 0 1 --vessels supply
     nice -n 10 .venv/bin/python benchmarks/wave_filter_campaign.py --seeds $(seq 0 29) --json out.json
     nice -n 10 .venv/bin/python benchmarks/wave_filter_campaign.py --full-scale-periods --vessels cybership2
+    nice -n 10 .venv/bin/python benchmarks/wave_filter_campaign.py --vessels blue_lady --sensor-noise-scale 0.1
     .venv/bin/python benchmarks/wave_filter_campaign.py --summarise out.json      # the table of what ran
+
+``--sensor-noise-scale`` multiplies the seed scenario's position and heading sensor noise (and so the filters' R,
+which follows the sensors): whether what a filter lets through is the waves or the sensors' noise.
 
 Every line printed is one run; the summary at the end gives, per vessel and estimator, the share of runs with
 ≥ 10× (horizontal and yaw), the median ratios, the share with LF content ≤ 10 %, and the ω̂ hits.
@@ -156,11 +160,14 @@ def band_std(x: np.ndarray, dt_s: float, low_rad_s: float, high_rad_s: float) ->
 
 def run_one(vessel: str, seed: int, kind: str, duration_s: float, settle_s: float, *,
             options: dict[str, Any] | None = None, control: dict[str, Any] | None = None, former: bool = False,
-            full_scale_periods: bool = False) -> dict[str, Any]:
-    """One run; the measured figures (see the module docstring)."""
+            full_scale_periods: bool = False, sensor_noise_scale: float = 1.0) -> dict[str, Any]:
+    """One run; the measured figures (see the module docstring). ``sensor_noise_scale`` multiplies the white noise
+    of the seed scenario's position and heading sensors (and so the filters' R, which follows the sensors)."""
     base = yaml.safe_load((ROOT / "sim_plant" / "scenarios" / VESSELS[vessel][0]).read_text(encoding="utf-8"))
     length = vessel_from_config(base["vessel"]).length_m
     scenario_map = {key: base[key] for key in ("vessel", "datum", "sensors", "plant") if key in base}
+    scenario_map["sensors"] = [{key: value * sensor_noise_scale if key in ("noise_m", "noise_deg") else value
+                                for key, value in sensor.items()} for sensor in base["sensors"]]
     scenario_map.update(name=f"campaign-{vessel}-{seed}", duration_s=duration_s, seed=1000 + seed,
                         setpoints=[{"t_s": 0, "north_m": 0, "east_m": 0, "heading_deg": 0}],
                         **random_sea(vessel, seed, length, full_scale_periods=full_scale_periods))
@@ -267,8 +274,10 @@ def main() -> int:
     parser.add_argument("--former-rule", action="store_true",
                         help="filtered runs with the LF noise rule before docs/wave-filter.md (\"today\")")
     parser.add_argument("--full-scale-periods", action="store_true",
-                        help="peak 0.35-1.3 rad/s for every vessel, unscaled estimator frequencies (the campaign "
-                             "before 2026-12-07)")
+                        help="peak 0.35-1.3 rad/s for every vessel, unscaled estimator frequencies (a model in "
+                             "seas of full-scale period)")
+    parser.add_argument("--sensor-noise-scale", type=float, default=1.0,
+                        help="multiply the position and heading sensors' white noise (is a leak noise or waves?)")
     parser.add_argument("--summarise", type=Path, help="only print the summary of a --json file")
     args = parser.parse_args()
     if args.summarise:
@@ -283,7 +292,8 @@ def main() -> int:
         for vessel in args.vessels:
             for kind in args.estimators:
                 r = run_one(vessel, seed, kind, args.duration, args.settle, options=args.options, control=args.control,
-                            former=args.former_rule, full_scale_periods=args.full_scale_periods)
+                            former=args.former_rule, full_scale_periods=args.full_scale_periods,
+                            sensor_noise_scale=args.sensor_noise_scale)
                 rows.append(r)
                 print(f"{vessel:<15} {seed:>4} {kind:<9} {r['omega_motion_rad_s']:.3f}  {r['omega_hat_rad_s']:.3f}  "
                       f"{r['force_wf']:10.4g}  {r['yaw_wf']:10.4g}  {100 * r['lf_wf_fraction']:5.1f}  "
