@@ -6,7 +6,7 @@ same twelve corrections and the same 12.5 % of mass added between two correction
 per correction as in the 4 h schedule, but every 10 min over 2 h (the tanker settles in ≈ 300 s; the fixed PD's
 late corrections, which take longer, count as not settled within the 10 min). Shuttle tanker, seed 003's own
 environment (``tanker-seed003``: Hs 2 m, Tp 10 s and 1 m/s of current from ahead), control at 2 Hz and the plant at
-5 Hz as in ``test_seed003.py``. Two runs of 7800 s, ≈ 20 s of CPU each.
+5 Hz as in ``test_seed003.py``. Two runs of 7800 s, ≈ 14 s each.
 
 The MRAC and the fixed PD of seed 003 eq. (25) (the MRAC with its adaptation off: the same gains at the ballast
 mass) are judged by the same criteria; the PD fails each of them.
