@@ -26,7 +26,7 @@ from sim_plant.bench.run import build_simulation
 from sim_plant.scenario import parse_scenario
 
 SCALE_CS2 = 70.0  # CyberShip II's model scale (seed 000)
-ENGAGE_S = 20.0  # DP engages once the estimator has settled (the lockstep runs' auto-engage)
+ENGAGE_S = 20.0  # DP engages once the estimator has settled (lockstep auto-engage; Froude-scaled on the model)
 
 # Per vessel: the scenario fragment and the bounds [m], [deg]. Full-scale seas of the supply vessel's fault
 # catalogue (sim_plant/scenarios/faults: Hs 1.0 m, 0.15 m/s current, 6 m/s wind); CyberShip II's the seed 000
@@ -69,7 +69,11 @@ VESSELS: dict[str, dict[str, Any]] = {
                                "freeze_window_s": 5.0 / math.sqrt(SCALE_CS2),
                                "reject_persist_s": 10.0 / math.sqrt(SCALE_CS2),
                                "single_reference_accept_s": 180.0 / math.sqrt(SCALE_CS2)},
-                       "deviation": {"position_warning_m": 0.2, "position_alarm_m": 0.3}},
+                       "deviation": {"position_warning_m": 0.2, "position_alarm_m": 0.3},
+                       # DP engaged after the lockstep runs' 20 s Froude-scaled (2.4 s): 20 s of model time is 167 s of
+                       # a ship drifting in standby (0.45 m, 31 m full scale, in the campaign's current), still being
+                       # made good when the measurement starts
+                       "loop": {"auto_engage_s": ENGAGE_S / math.sqrt(SCALE_CS2)}},
         "sea": {"hs_m": 0.04, "omega_peak_rad_s": 1.2},
         "current_mps": 0.03, "wind_mps": 0.0,
         # (the receiver's velocity noise Froude-scaled with its position noise: 0.02 m/s full scale)
