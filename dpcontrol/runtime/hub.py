@@ -596,7 +596,7 @@ class HubOutput:
 
     Attributes
     ----------
-    y_n : list of float
+    y_ned : list of float
         Fused measurement [north_m, east_m, psi_rad] (NED; heading wrapped).
     measured : tuple of bool
         Which of (north, east, heading) carry a new sample this step.
@@ -627,7 +627,7 @@ class HubOutput:
         in use beyond their configured one [-] (1: not de-weighted; module docstring, "Noisy position references").
     """
 
-    y_n: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    y_ned: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
     measured: tuple[bool, bool, bool] = (False, False, False)
     position_available: bool = False
     heading_available: bool = False
@@ -754,8 +754,8 @@ class SensorHub:
         if rate is not None:
             rate.disconnected = disconnected
 
-    def update(self, t_s: float, measurements: Iterable[Measurement], predicted_y_n: Sequence[float] | None,
-               predicted_variance: Sequence[float] | None, velocity_n: Sequence[float] | None = None) -> HubOutput:
+    def update(self, t_s: float, measurements: Iterable[Measurement], predicted_y_ned: Sequence[float] | None,
+               predicted_variance: Sequence[float] | None, velocity_ned: Sequence[float] | None = None) -> HubOutput:
         """Ingest the measurements received since the last step and fuse them.
 
         Parameters
@@ -764,12 +764,12 @@ class SensorHub:
             Current time [s].
         measurements : iterable of Measurement
             New valid measurements, in receive order.
-        predicted_y_n : sequence of 3 floats or None
+        predicted_y_ned : sequence of 3 floats or None
             The wave filter's predicted measurement [north_m, east_m, psi_rad] for this step (None
             before the estimator is initialised: the prediction test is skipped).
         predicted_variance : sequence of 3 floats or None
             Innovation variances of that prediction [m², m², rad²].
-        velocity_n : sequence of 2 floats or None
+        velocity_ned : sequence of 2 floats or None
             Estimated LF velocity in NED [m/s], to move slower references' latest samples to ``t_s``.
         """
         last = self._last_update_t_s
@@ -784,7 +784,7 @@ class SensorHub:
         if predicted_variance is not None and \
                 (self._position_lost_since is not None or self._heading_lost_since is not None):
             predicted_variance = self._dead_reckoning_variance(t_s, predicted_variance)
-        self._ingest(measurements, predicted_y_n, predicted_variance)
+        self._ingest(measurements, predicted_y_ned, predicted_variance)
         if self._checks:
             self._rate_check(t_s, dt)
         if self._velocity_seen:
@@ -821,9 +821,9 @@ class SensorHub:
             self._median_one(healthy_heading, t_s, heading=True)
         # After a loss the references come back to an estimator that dead-reckoned: its prediction is the
         # anchor the step is faded from (not after a reset, which is there to trust the references).
-        pos_new = self._fuse_position(t_s, velocity_n, None if out.position_reset else predicted_y_n,
+        pos_new = self._fuse_position(t_s, velocity_ned, None if out.position_reset else predicted_y_ned,
                                       healthy_position)
-        head_new = self._fuse_heading(t_s, None if out.heading_reset else predicted_y_n, healthy_heading)
+        head_new = self._fuse_heading(t_s, None if out.heading_reset else predicted_y_ned, healthy_heading)
         out.measured = (pos_new, pos_new, head_new)
         if predicted_y_n is not None and self._base_variance is not None and not out.position_reset:
             self._noise_weights(t_s, dt, predicted_y_n, self._base_variance, pos_new)
@@ -832,14 +832,14 @@ class SensorHub:
             self._noise_growth = 0.0
             self.alarms.clear(t_s, "position.noisy_reference")
         if self._velocity_seen:
-            self._velocity_dead_reckoning(t_s, predicted_y_n)
+            self._velocity_dead_reckoning(t_s, predicted_y_ned)
         out.yaw_rate_radps = self._yaw_rate
         if self._rates:
-            self._rate_of_turn(t_s, dt, head_new, predicted_y_n)
+            self._rate_of_turn(t_s, dt, head_new, predicted_y_ned)
         self._availability(t_s)
         return out
 
-    def _ingest(self, measurements: Iterable[Measurement], predicted_y_n: Sequence[float] | None,
+    def _ingest(self, measurements: Iterable[Measurement], predicted_y_ned: Sequence[float] | None,
                 predicted_variance: Sequence[float] | None) -> None:
         """Each measurement to its reference's tests (or its rate source), in receive order."""
         tracks = self._tracks
@@ -855,14 +855,14 @@ class SensorHub:
                 continue
             if track.heading:
                 if isinstance(message, Heading):
-                    self._common_tests(track, measurement.t_s, (ssa(message.heading_rad), 0.0), predicted_y_n,
+                    self._common_tests(track, measurement.t_s, (ssa(message.heading_rad), 0.0), predicted_y_ned,
                                        predicted_variance)
                 elif isinstance(message, RateOfTurn):
                     self._yaw_rate = message.rate_radps
                     if track.rate is not None:
                         self._ingest_rate(track.rate, measurement.t_s, message.rate_radps)
             elif isinstance(message, PositionFix):
-                self._ingest_position(track, measurement.t_s, message, predicted_y_n, predicted_variance)
+                self._ingest_position(track, measurement.t_s, message, predicted_y_ned, predicted_variance)
             elif isinstance(message, CourseOverGround):
                 self._ingest_velocity(track, measurement.t_s, message)
             elif isinstance(message, PositionErrorStats):
@@ -1059,14 +1059,20 @@ class SensorHub:
 
     def _maybe_release(self, t_s: float) -> None:
         """Every heading reference compared has agreed with the rate again for ``rot_check_return_s``: the
-        rejected gyro or the blamed rate is taken back and the alarm clears."""
+        rejected gyro or the blamed rate is taken back and the alarm clears. With none compared (every gyro lost)
+        the verdict stands: a rate blamed a moment ago is not dead-reckoned on because nothing contradicts it now,
+        and a rejected gyro that returns is taken back only when it agrees in rate again."""
         return_s = self.config.rot_check_return_s
+        compared = False
         for track in self._heading:
             check = track.check
-            if check is not None and check.count > 1 and \
-                    (check.agree_since_t_s is None or t_s - check.agree_since_t_s < return_s):
+            if check is None or check.count <= 1:
+                continue
+            if check.agree_since_t_s is None or t_s - check.agree_since_t_s < return_s:
                 return
-        self._release(t_s)
+            compared = True
+        if compared:
+            self._release(t_s)
 
     def _release(self, t_s: float) -> None:
         """The rate check's verdict ends: rejected gyros and a blamed rate are taken back."""
@@ -1176,9 +1182,9 @@ class SensorHub:
                 sigma_v * sigma_v * dt * dt
             base = self._base_variance
             s_north, s_east = (base[0], base[1]) if base is not None else (variance, variance)
-            y_n = out.y_n
-            y_n[0] = predicted[0] + _update_weight(s_north, variance) * (north - predicted[0])
-            y_n[1] = predicted[1] + _update_weight(s_east, variance) * (east - predicted[1])
+            y_ned = out.y_ned
+            y_ned[0] = predicted[0] + _update_weight(s_north, variance) * (north - predicted[0])
+            y_ned[1] = predicted[1] + _update_weight(s_east, variance) * (east - predicted[1])
             out.measured = (True, True, out.measured[2])
             out.position_velocity_source = track.name
             out.position_dr_sigma_m = math.sqrt(variance)
@@ -1232,7 +1238,7 @@ class SensorHub:
         """A fresh fused heading: the dead reckoning starts again from it, combined with the estimator's prediction
         (prior variance P = S − R, the measurement's R = 1/Σw): one gyro sample's noise (0.05°) would otherwise
         stay in the dead-reckoned heading as an offset, where the filtered estimate is within a few 0.01°."""
-        measured = self._out.y_n[2]
+        measured = self._out.y_ned[2]
         noise = 1.0 / self._heading_weight
         base = self._base_variance
         if predicted is None or base is None:
@@ -1307,7 +1313,7 @@ class SensorHub:
         variance = self._dr_var0 + self._dr_noise_var + self._dr_bias_sd * self._dr_bias_sd
         base = self._base_variance
         innovation = base[2] if base is not None else variance
-        out.y_n[2] = ssa(predicted[2] + _update_weight(innovation, variance) * ssa(self._dr_heading - predicted[2]))
+        out.y_ned[2] = ssa(predicted[2] + _update_weight(innovation, variance) * ssa(self._dr_heading - predicted[2]))
         out.measured = (out.measured[0], out.measured[1], True)
         out.heading_rate_source = source.name
         out.heading_dr_sigma_rad = math.sqrt(variance)
@@ -1363,24 +1369,29 @@ class SensorHub:
             d_north, d_east = lever_arm_ned(arm_x, arm_y, heading)
             north -= d_north
             east -= d_east
-        self._common_tests(track, t_s, (north, east), predicted, variance)
+        self._common_tests(track, t_s, (north, east), predicted, variance, raw=track.antenna)
 
     def _common_tests(self, track: _SensorTrack, t_s: float, value: tuple[float, float],
-                      predicted: Sequence[float] | None, variance: Sequence[float] | None) -> None:
+                      predicted: Sequence[float] | None, variance: Sequence[float] | None, *,
+                      raw: tuple[float, float] | None = None) -> None:
         """Freeze, prediction and variance tests of one sample: NED ``(north_m, east_m)`` or
-        ``(psi_rad, 0)``; an accepted sample updates the reference's low-passed level."""
+        ``(psi_rad, 0)``; an accepted sample updates the reference's low-passed level. ``raw``: the sample as the
+        sensor gave it (a GNSS antenna's position, before the lever arm is taken off with the current heading),
+        which is what a frozen sensor repeats; None: ``value``."""
         cfg = self.config
         heading = track.heading
         v0, v1 = value
         track.samples += 1
         track.last_t_s = t_s
         track.value = value
-        # Freeze: identical raw values while time advances.
+        # Freeze: identical raw values while time advances (the antenna's: with a lever arm the corrected value
+        # of a frozen receiver moves with the vessel's yaw)
         tolerance = cfg.freeze_tolerance_rad if heading else cfg.freeze_tolerance_m
         previous = track.raw_previous
-        track.raw_previous = value
-        if previous is not None and abs(ssa(v0 - previous[0]) if heading else v0 - previous[0]) <= tolerance \
-                and abs(v1 - previous[1]) <= tolerance:
+        current = value if raw is None else raw
+        track.raw_previous = current
+        if previous is not None and abs(ssa(current[0] - previous[0]) if heading else current[0] - previous[0]) \
+                <= tolerance and abs(current[1] - previous[1]) <= tolerance:
             if track.frozen_since_t_s is None:
                 track.frozen_since_t_s = t_s - track.nominal_period_s
         else:
@@ -1394,7 +1405,7 @@ class SensorHub:
             return
         last_accepted = track.last_accepted_t_s
         if track.rejecting_since_t_s is not None and variance is not self._base_variance and previous is not None \
-                and _distance(value, previous, heading) <= (cfg.heading_jump_min_rad if heading else cfg.jump_min_m):
+                and _distance(current, previous, heading) <= (cfg.heading_jump_min_rad if heading else cfg.jump_min_m):
             # A reference being rejected that has not stepped since: its jump persists. Judged against the
             # filter's own variance, not the one grown by dead reckoning — that growth is the estimate's
             # uncertainty about a reference that was *absent*, and would let a persisting jump in after a while.
@@ -1718,7 +1729,7 @@ class SensorHub:
         return (sum(w * v[0] for v, w in zip(values, weights, strict=True)) / total,
                 sum(w * v[1] for v, w in zip(values, weights, strict=True)) / total)
 
-    def _fuse_position(self, t_s: float, velocity_n: Sequence[float] | None, anchor: Sequence[float] | None,
+    def _fuse_position(self, t_s: float, velocity_ned: Sequence[float] | None, anchor: Sequence[float] | None,
                        healthy: list[_SensorTrack]) -> bool:
         for track in self._position:
             track.weight = 0.0
@@ -1728,7 +1739,7 @@ class SensorHub:
             return False
         weights = self._weights(usable)
         total = sum(weights)
-        vn, ve = (velocity_n[0], velocity_n[1]) if velocity_n is not None else (0.0, 0.0)
+        vn, ve = (velocity_ned[0], velocity_ned[1]) if velocity_ned is not None else (0.0, 0.0)
         north = east = 0.0
         fresh = False
         for track, weight in zip(usable, weights, strict=True):
@@ -1771,9 +1782,9 @@ class SensorHub:
             decay = self._decay
             offset[0] *= decay
             offset[1] *= decay
-        y_n = self._out.y_n
-        y_n[0] = north + offset[0]
-        y_n[1] = east + offset[1]
+        y_ned = self._out.y_ned
+        y_ned[0] = north + offset[0]
+        y_ned[1] = east + offset[1]
         self._out.position_sigma_m = 1.0 / math.sqrt(total)
         return fresh
 
@@ -1817,7 +1828,7 @@ class SensorHub:
             self._heading_offset *= self._decay
         fused = ssa(heading + self._heading_offset)
         self._last_heading = fused
-        self._out.y_n[2] = fused
+        self._out.y_ned[2] = fused
         return fresh
 
     def _noise_weights(self, t_s: float, dt: float, predicted: Sequence[float], innovation: Sequence[float],
