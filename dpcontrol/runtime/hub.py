@@ -825,8 +825,8 @@ class SensorHub:
                                       healthy_position)
         head_new = self._fuse_heading(t_s, None if out.heading_reset else predicted_y_ned, healthy_heading)
         out.measured = (pos_new, pos_new, head_new)
-        if predicted_y_n is not None and self._base_variance is not None and not out.position_reset:
-            self._noise_weights(t_s, dt, predicted_y_n, self._base_variance, pos_new)
+        if predicted_y_ned is not None and self._base_variance is not None and not out.position_reset:
+            self._noise_weights(t_s, dt, predicted_y_ned, self._base_variance, pos_new)
         elif self._noise_alarm:
             self._noise_alarm = False
             self._noise_growth = 0.0
@@ -1859,15 +1859,15 @@ class SensorHub:
             growth = sd * sd
         else:
             growth = 0.0
-        weight_n = _update_weight(innovation[0] + growth, excess)
-        weight_e = _update_weight(innovation[1] + growth, excess)
+        weight_north = _update_weight(innovation[0] + growth, excess)
+        weight_east = _update_weight(innovation[1] + growth, excess)
         if pos_new and excess > 0.0:
-            y_n = out.y_n
-            y_n[0] = predicted[0] + weight_n * (y_n[0] - predicted[0])
-            y_n[1] = predicted[1] + weight_e * (y_n[1] - predicted[1])
-            growth *= 1.0 - 0.5 * (weight_n + weight_e)  # (what the de-weighted update takes off it)
+            y_ned = out.y_ned
+            y_ned[0] = predicted[0] + weight_north * (y_ned[0] - predicted[0])
+            y_ned[1] = predicted[1] + weight_east * (y_ned[1] - predicted[1])
+            growth *= 1.0 - 0.5 * (weight_north + weight_east)  # (what the de-weighted update takes off it)
         self._noise_growth = growth
-        weight = out.position_noise_weight = min(weight_n, weight_e)
+        weight = out.position_noise_weight = min(weight_north, weight_east)
         code = "position.noisy_reference"
         if self._noise_alarm:
             if excess <= 0.0:  # taken back: from the prediction, the error of the de-weighted time faded out

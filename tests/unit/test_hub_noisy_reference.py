@@ -50,7 +50,7 @@ class LoneReceiver:
             out = self.hub.update(self.t, measurements, [*self.prediction, math.radians(30.0)], [0.3, 0.3, 1e-5])
             self.t_s.append(self.t)
             self.weight.append(out.position_noise_weight)
-            self.north.append(out.y_n[0])
+            self.north.append(out.y_ned[0])
             self.raised.append(self.alarms.is_active(CODE))
 
     def between(self, t0_s: float, t1_s: float) -> np.ndarray:
