@@ -195,7 +195,7 @@ class _Soak:
     steps: int = 0
     error_max_m: float = 0.0
     error_sq: float = 0.0
-    error_n: int = 0
+    error_count: int = 0
     error_hist: np.ndarray = field(default_factory=lambda: np.zeros(2001, dtype=np.int64))
     mismatch_s: dict[int, float] = field(default_factory=dict)  # time the thrust mismatch exceeded the limit
     mismatch_first: dict[int, float] = field(default_factory=dict)  # when it first did
@@ -248,20 +248,20 @@ class _Soak:
         # station keeping (true LF position − reference) while engaged
         if out.reference is not None and controller.mode is Mode.AUTO_POSITION:
             truth = self.simulation.plant.truth
-            error = math.hypot(truth.north_m - float(out.reference.eta_d_n[0]),
-                               truth.east_m - float(out.reference.eta_d_n[1]))
+            error = math.hypot(truth.north_m - float(out.reference.eta_d_ned[0]),
+                               truth.east_m - float(out.reference.eta_d_ned[1]))
             self.error_max_m = max(self.error_max_m, error)
             self.error_sq += error * error
-            self.error_n += 1
+            self.error_count += 1
             self.error_hist[min(int(error / 0.01), 2000)] += 1
 
     def _check_finite(self, t_s: float, out: StepOutput) -> None:
         parts = {"thrust_n": out.thrust_n, "azimuth_rad": out.azimuth_rad, "tau_b": out.tau_b,
                  "tau_achieved_b": out.tau_achieved_b, "shortfall_b": out.shortfall_b}
         if out.hub is not None:
-            parts["hub_y_n"] = np.asarray(out.hub.y_n)
+            parts["hub_y_n"] = np.asarray(out.hub.y_ned)
         if out.estimate is not None:
-            parts.update(eta_hat_n=out.estimate.eta_hat_n, nu_hat_b=out.estimate.nu_hat_b,
+            parts.update(eta_hat_ned=out.estimate.eta_hat_ned, nu_hat_b=out.estimate.nu_hat_b,
                          bias_hat_b=out.estimate.bias_hat_b)
         for name, value in parts.items():
             if not np.all(np.isfinite(value)):
@@ -374,7 +374,7 @@ def run(hours: float = 24.0, seed: int = 1, progress: Callable[[float, float], N
         report["protocol_faults_applied"] = len(result.counters["protocol_faults"])
     report["station_keeping_m"] = {
         "max": round(soak.error_max_m, 2),
-        "rms": round(math.sqrt(soak.error_sq / soak.error_n), 3) if soak.error_n else None,
+        "rms": round(math.sqrt(soak.error_sq / soak.error_count), 3) if soak.error_count else None,
         "p50": soak.error_percentile_m(50.0), "p99": soak.error_percentile_m(99.0)}
     return report
 

@@ -169,10 +169,10 @@ def run_one(vessel: str, seed: int, kind: str, duration_s: float, settle_s: floa
     def bs(name: str) -> float:
         return band_std(col(name)[keep], dt, low, high)
 
-    wf_n = col("north_total_m") - col("north_m")
-    wf_e = col("east_total_m") - col("east_m")
+    wf_north = col("north_total_m") - col("north_m")
+    wf_east = col("east_total_m") - col("east_m")
     wf_psi = col("heading_total_rad") - col("heading_rad")
-    true_wf = math.hypot(band_std(wf_n[keep], dt, low, high), band_std(wf_e[keep], dt, low, high))
+    true_wf = math.hypot(band_std(wf_north[keep], dt, low, high), band_std(wf_east[keep], dt, low, high))
     true_wf_psi = band_std(wf_psi[keep], dt, low, high)
     error = np.hypot(col("north_m") - col("ref_north_m"), col("east_m") - col("ref_east_m"))[keep]
     omega_hat = col("omega_hat_rad_s")[keep]

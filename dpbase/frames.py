@@ -1,6 +1,6 @@
 """Reference frames and angle helpers (Fossen/SNAME conventions).
 
-Earth-fixed frame: local NED tangent plane at a datum, ``eta_n = [north_m, east_m, psi_rad]``,
+Earth-fixed frame: local NED tangent plane at a datum, ``eta_ned = [north_m, east_m, psi_rad]``,
 heading ``psi`` 0 = north, positive clockwise seen from above. Body frame: surge (forward),
 sway (starboard), yaw (clockwise), ``nu_b = [u_mps, v_mps, r_radps]``.
 
@@ -71,9 +71,9 @@ def body_to_ned(vector_b: np.ndarray, psi_rad: float) -> np.ndarray:
     return np.array([c * x - s * y, s * x + c * y, z])
 
 
-def ned_to_body(vector_n: np.ndarray, psi_rad: float) -> np.ndarray:
+def ned_to_body(vector_ned: np.ndarray, psi_rad: float) -> np.ndarray:
     """Rotate a 3-DOF NED vector to body axes: ``R_nb(ψ)ᵀ · v_n`` (vessel-parallel, seed 002 eq. (14))."""
     c = math.cos(psi_rad)
     s = math.sin(psi_rad)
-    x, y, z = float(vector_n[0]), float(vector_n[1]), float(vector_n[2])
+    x, y, z = float(vector_ned[0]), float(vector_ned[1]), float(vector_ned[2])
     return np.array([c * x + s * y, -s * x + c * y, z])

@@ -132,16 +132,16 @@ class LocalFrame:
         x0, y0, z0 = self._origin  # type: ignore[attr-defined]
         dx_ne = -sl * co * north_m - so * east_m
         dy_ne = -sl * so * north_m + co * east_m
-        dz_n = cl * north_m
+        dz_north = cl * north_m
         clco = cl * co
         clso = cl * so
         down = 0.0
         for _ in range(3):  # the altitude error shrinks by ~1e-6 per iteration
             _, _, alt = ecef_to_geodetic(x0 + (dx_ne - clco * down), y0 + (dy_ne - clso * down),
-                                         z0 + (dz_n - sl * down))
+                                         z0 + (dz_north - sl * down))
             down += alt - alt_m
         lat, lon, _ = ecef_to_geodetic(x0 + (dx_ne - clco * down), y0 + (dy_ne - clso * down),
-                                       z0 + (dz_n - sl * down))
+                                       z0 + (dz_north - sl * down))
         return lat, lon
 
 

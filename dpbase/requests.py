@@ -62,9 +62,9 @@ class SetpointRequest:
         north += self.move_north_m or 0.0
         east += self.move_east_m or 0.0
         if self.move_surge_m is not None or self.move_sway_m is not None:
-            delta_n = body_to_ned(np.array([self.move_surge_m or 0.0, self.move_sway_m or 0.0, 0.0]), heading_rad)
-            north += float(delta_n[0])
-            east += float(delta_n[1])
+            delta_ned = body_to_ned(np.array([self.move_surge_m or 0.0, self.move_sway_m or 0.0, 0.0]), heading_rad)
+            north += float(delta_ned[0])
+            east += float(delta_ned[1])
         heading = self.heading_rad if self.heading_rad is not None else heading_rad
         heading = ssa(heading + (self.turn_rad or 0.0))
         return north, east, heading

@@ -434,7 +434,7 @@ _STOP = _Stop()
 class _OpenFile:
     """The file being written and its per-file MCAP state (writer thread only)."""
 
-    __slots__ = ("channels", "messages", "path", "pending", "pending_n", "schemas", "start_ns", "stream", "writer")
+    __slots__ = ("channels", "messages", "path", "pending", "pending_count", "schemas", "start_ns", "stream", "writer")
 
     def __init__(self, path: Path, stream: IO[bytes], writer: Writer) -> None:
         self.path = path
@@ -444,7 +444,7 @@ class _OpenFile:
         self.channels: dict[str, int] = {}
         self.schemas: dict[str, int] = {}
         self.pending: dict[str, int] = {}  # records added since the last successful flush, by topic
-        self.pending_n = 0
+        self.pending_count = 0
         self.messages = 0  # records of the loop's topics in this file (not config/recorder)
 
 
@@ -881,7 +881,7 @@ class Recorder:
         self._seq = (self._seq + 1) & 0xFFFFFFFF
         current.writer.add_message(channel, log_time, data, log_time, self._seq)
         current.pending[topic] = current.pending.get(topic, 0) + 1
-        current.pending_n += 1
+        current.pending_count += 1
         if self._flush_due is None:
             self._flush_due = time.monotonic() + self._flush_after_s
 
@@ -916,9 +916,9 @@ class Recorder:
         except OSError as error:
             self._fail("flush", error, current.path)
             return False
-        self._written += current.pending_n
+        self._written += current.pending_count
         current.pending.clear()
-        current.pending_n = 0
+        current.pending_count = 0
         self._flush_due = None
         self._file_bytes = size
         if size >= self._max_file_bytes and current.messages > 0:
@@ -933,7 +933,7 @@ class Recorder:
         total = sum(by_reason.values())
         self._reported_dropped = total
         error = self._error
-        payload = {"written": self._written + current.pending_n, "dropped": total, "dropped_by_reason": by_reason,
+        payload = {"written": self._written + current.pending_count, "dropped": total, "dropped_by_reason": by_reason,
                    "errors": self._errors, "last_error": error.message if error is not None else None,
                    "file": current.path.name}
         return encode_record(self._last_t_s, payload)
@@ -1007,9 +1007,9 @@ class Recorder:
         self._file_name = name
         self._file_bytes = stream.tell()
         self._files_opened += 1
-        self._written += current.pending_n
+        self._written += current.pending_count
         current.pending.clear()
-        current.pending_n = 0
+        current.pending_count = 0
         self._flush_due = None
 
     def _prune(self, existing: list[Path]) -> None:
@@ -1054,7 +1054,7 @@ class Recorder:
         except OSError as error:
             self._fail("finish", error, current.path)
             return
-        self._written += current.pending_n
+        self._written += current.pending_count
         self._file = None
         self._file_name = None
         self._file_bytes = size

@@ -332,28 +332,28 @@ class GnssSensor(_Sensor):
     def _velocity(self, t_s: float, north_m: float, east_m: float, factor: float) -> CourseOverGround | None:
         """SOG/COG at ``t_s`` from the true antenna position (module docstring); None without a previous one."""
         history = self._previous_antenna
-        white_n, white_e = self._velocity_normals()  # drawn every sample: faults do not shift the stream
+        white_north, white_east = self._velocity_normals()  # drawn every sample: faults do not shift the stream
         if len(history) == 2:
             (t0, n0, e0), (t1, n1, e1) = history
             h1, h2 = t1 - t0, t_s - t1  # (> 0: samples are scheduled forward)
             c0 = h2 / (h1 * (h1 + h2))
             c1 = -(h1 + h2) / (h1 * h2)
             c2 = (h1 + 2.0 * h2) / (h2 * (h1 + h2))
-            v_n = c0 * n0 + c1 * n1 + c2 * north_m
-            v_e = c0 * e0 + c1 * e1 + c2 * east_m
+            v_north = c0 * n0 + c1 * n1 + c2 * north_m
+            v_east = c0 * e0 + c1 * e1 + c2 * east_m
             history.pop(0)
         elif history:
             t1, n1, e1 = history[0]
-            v_n = (north_m - n1) / (t_s - t1)
-            v_e = (east_m - e1) / (t_s - t1)
+            v_north = (north_m - n1) / (t_s - t1)
+            v_east = (east_m - e1) / (t_s - t1)
         else:
             history.append((t_s, north_m, east_m))
             return None
         history.append((t_s, north_m, east_m))
         sigma = factor * self.gnss.velocity_noise_mps
-        v_n += sigma * white_n
-        v_e += sigma * white_e
-        return CourseOverGround(math.atan2(v_e, v_n) % TWO_PI, math.hypot(v_n, v_e))
+        v_north += sigma * white_north
+        v_east += sigma * white_east
+        return CourseOverGround(math.atan2(v_east, v_north) % TWO_PI, math.hypot(v_north, v_east))
 
     def sample(self, t_s: float, north_m: float, east_m: float, heading_rad: float) -> list[SensorSample]:
         """Samples at ``t_s`` from the vessel's TOTAL pose (LF + WF), then schedule the next.
@@ -369,27 +369,27 @@ class GnssSensor(_Sensor):
         self._advance_schedule()
         self._gm_step(self._gm, spec.markov_m, spec.markov_time_constant_s, t_s)
         self._gm_time_s = t_s
-        white_n, white_e = self._normals(2)  # drawn every sample: faults do not shift the stream
+        white_north, white_east = self._normals(2)  # drawn every sample: faults do not shift the stream
         active = self._active(t_s)
         kinds = {f.kind for f in active} if active else ()
         if "gnss_dropout" in kinds:
             return []
         factor = 1.0
-        off_n = off_e = 0.0
+        off_north = off_east = 0.0
         for f in active:
             if f.kind == "gnss_noise":
                 factor *= f.factor
             elif f.kind == "gnss_jump":
-                off_n += f.offset_m * math.cos(f.direction_rad)
-                off_e += f.offset_m * math.sin(f.direction_rad)
+                off_north += f.offset_m * math.cos(f.direction_rad)
+                off_east += f.offset_m * math.sin(f.direction_rad)
             elif f.kind == "gnss_drift":
                 grown = f.rate_mps * (t_s - f.t_s)
-                off_n += grown * math.cos(f.direction_rad)
-                off_e += grown * math.sin(f.direction_rad)
+                off_north += grown * math.cos(f.direction_rad)
+                off_east += grown * math.sin(f.direction_rad)
         dn, de = lever_arm_ned(spec.lever_arm_m[0], spec.lever_arm_m[1], heading_rad)
         gm = self._gm
-        n = north_m + dn + gm[0] + factor * spec.noise_m * white_n + off_n
-        e = east_m + de + gm[1] + factor * spec.noise_m * white_e + off_e
+        n = north_m + dn + gm[0] + factor * spec.noise_m * white_north + off_north
+        e = east_m + de + gm[1] + factor * spec.noise_m * white_east + off_east
         velocity = self._velocity(t_s, north_m + dn, east_m + de, factor) if spec.velocity else None
         utc = self._utc(t_s)
         if "gnss_freeze" in kinds and self._last_latlon is not None:

@@ -297,13 +297,13 @@ class AutopilotController:
     def config(self) -> AutopilotConfig:
         return self.pilot.config
 
-    def step(self, dt_s: float, eta_hat_n: np.ndarray, nu_hat_b: np.ndarray, bias_hat_b: np.ndarray | None,
+    def step(self, dt_s: float, eta_hat_ned: np.ndarray, nu_hat_b: np.ndarray, bias_hat_b: np.ndarray | None,
              reference: Reference, *, dof_enabled: Sequence[bool] = HEADING_ONLY,
              tau_wind_ff_b: np.ndarray | None = None) -> ControlOutput:
         """One control period of eqs. (64)–(67) (``dof_enabled`` is ignored: the autopilot holds heading only)."""
-        r_d = float(reference.eta_dot_d_n[2])
-        pilot = self.pilot.step(dt_s, float(eta_hat_n[2]), float(nu_hat_b[2]), float(reference.eta_d_n[2]),
-                                r_d_radps=r_d, r_dot_d_radps2=float(reference.eta_ddot_d_n[2]),
+        r_d = float(reference.eta_dot_d_ned[2])
+        pilot = self.pilot.step(dt_s, float(eta_hat_ned[2]), float(nu_hat_b[2]), float(reference.eta_d_ned[2]),
+                                r_d_radps=r_d, r_dot_d_radps2=float(reference.eta_ddot_d_ned[2]),
                                 tau_wind_n_nm=None if tau_wind_ff_b is None else float(tau_wind_ff_b[2]),
                                 tau_bias_n_nm=None if bias_hat_b is None else float(bias_hat_b[2]))
         out = self._out

@@ -53,6 +53,10 @@ class ControlOutput:
     rudder_rad : float or None
         The rudder command [rad] of a controller that steers with the rudder (``rudder_steering``): the
         allocation sets it directly; None for the DP controllers.
+    tracked_ned : ndarray, shape (3,), or None
+        The pose the controller makes the vessel follow at this step ``[m, m, rad]`` (NED), when it is not the
+        guidance's reference ``η_d``: the MRAC's reference model ``y_M`` (seed 003 eq. (15)), which trails
+        ``η_d`` by design. The deviation alarms measure from it. None: the vessel follows ``η_d``.
     """
 
     tau_b: np.ndarray
@@ -60,6 +64,7 @@ class ControlOutput:
     velocity_error_b: np.ndarray
     parameters: Mapping[str, float] | None = None
     rudder_rad: float | None = None
+    tracked_ned: np.ndarray | None = None
 
 
 class MassAdaptation(Protocol):
@@ -111,7 +116,9 @@ class PositionController(Protocol):
     itself), or None for a controller with fixed parameters. ``rudder_steering``: the controller holds heading
     only and steers with the rudder (the course-keeping autopilot): its output carries the rudder command, the
     runtime engages it in ``auto_heading`` and feeds the estimator the rudder angle; False for the DP
-    controllers, which ask the allocation for a force in every DOF.
+    controllers, which ask the allocation for a force in every DOF. What pose the controller makes the vessel
+    follow, when it is not the guidance's ``η_d``, each step says in :attr:`ControlOutput.tracked_ned`; the runtime
+    watches the deviation from it and asks nothing else about the controller's kind.
     """
 
     @property
@@ -120,7 +127,7 @@ class PositionController(Protocol):
     @property
     def rudder_steering(self) -> bool: ...
 
-    def step(self, dt_s: float, eta_hat_n: np.ndarray, nu_hat_b: np.ndarray, bias_hat_b: np.ndarray | None,
+    def step(self, dt_s: float, eta_hat_ned: np.ndarray, nu_hat_b: np.ndarray, bias_hat_b: np.ndarray | None,
              reference: Reference, *, dof_enabled: Sequence[bool] = ALL_DOFS,
              tau_wind_ff_b: np.ndarray | None = None) -> ControlOutput: ...
 
@@ -194,7 +201,7 @@ def kernel_arguments(dof_enabled: Sequence[bool], bias_hat_b: Any, tau_wind_ff_b
     return (mask, zero3 if bias_hat_b is None else bias_hat_b, zero3 if tau_wind_ff_b is None else tau_wind_ff_b)
 
 
-def checked_state_inputs(eta_hat_n: Any, nu_hat_b: Any, dof_enabled: Sequence[bool], *, bias_hat_b: Any,
+def checked_state_inputs(eta_hat_ned: Any, nu_hat_b: Any, dof_enabled: Sequence[bool], *, bias_hat_b: Any,
                          tau_wind_ff_b: Any, zero3: np.ndarray
                          ) -> tuple[np.ndarray, np.ndarray, int, np.ndarray, np.ndarray]:
     """The state arguments of a controller step checked in their order and converted for its kernel.
@@ -211,7 +218,7 @@ def checked_state_inputs(eta_hat_n: Any, nu_hat_b: Any, dof_enabled: Sequence[bo
     bias, wind : ndarray, shape (3,)
         b̂ and the wind feed-forward [N, N, N·m] (body), ``zero3`` when not given.
     """
-    eta = np.array(floats3("eta_hat_n", eta_hat_n))
+    eta = np.array(floats3("eta_hat_ned", eta_hat_ned))
     nu = np.array(floats3("nu_hat_b", nu_hat_b))
     flags = dof_mask(dof_enabled)
     bias = zero3 if bias_hat_b is None else np.array(floats3("bias_hat_b", bias_hat_b))

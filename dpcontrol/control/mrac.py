@@ -189,6 +189,7 @@ from dpcontrol.control.kernels import (
     MASS_CHANGED,
     OUT_ERROR,
     OUT_PARAMETERS,
+    OUT_REFERENCE_MODEL,
     OUT_SIZE,
     OUT_TAU,
     OUT_VELOCITY_ERROR,
@@ -485,13 +486,13 @@ def reference_excitation(guidance: ReferenceModelConfig, natural_period_s: Tripl
     state = {i: np.zeros(3) for i in dofs}  # [y_M, ẏ_M, r] per DOF
     for _ in range(steps):
         reference = model.step(dt, target)
-        r = reference.eta_d_n
+        r = reference.eta_d_ned
         for i in dofs:
             x = state[i]
             e, beta0, beta1 = phi[i]
             if guided:
-                x[1] = reference.eta_dot_d_n[i]
-                accel = float(reference.eta_ddot_d_n[i])
+                x[1] = reference.eta_dot_d_ned[i]
+                accel = float(reference.eta_ddot_d_ned[i])
             else:
                 x[2] = r[i]
                 accel = beta0 * (x[2] - x[0]) - beta1 * x[1]
@@ -792,7 +793,7 @@ class MracController:
         return self._state[S_A1].copy()
 
     @property
-    def reference_model_state_n(self) -> tuple[np.ndarray, np.ndarray]:
+    def reference_model_state_ned(self) -> tuple[np.ndarray, np.ndarray]:
         """``(y_M, ẏ_M)`` of the reference model in NED (new arrays)."""
         return self._state[S_Y_M].copy(), self._state[S_YD_M].copy()
 
@@ -808,13 +809,13 @@ class MracController:
         return (np.array([a * b for a, b in zip(a2, self._beta0, strict=True)]),
                 np.array([a * b for a, b in zip(a2, self._beta1, strict=True)]))
 
-    def step(self, dt_s: float, eta_hat_n: np.ndarray, nu_hat_b: np.ndarray, bias_hat_b: np.ndarray | None,
+    def step(self, dt_s: float, eta_hat_ned: np.ndarray, nu_hat_b: np.ndarray, bias_hat_b: np.ndarray | None,
              reference: Reference, *, dof_enabled: Sequence[bool] = ALL_DOFS,
              tau_wind_ff_b: np.ndarray | None = None) -> ControlOutput:
         """One control period (arguments as :meth:`dpcontrol.control.pid.PidController.step`).
 
         The reference model is initialised at the estimate on the first step after
-        construction or :meth:`reset` (bumpless), is driven by ``reference.eta_d_n`` and advanced
+        construction or :meth:`reset` (bumpless), is driven by ``reference.eta_d_ned`` and advanced
         by ``dt_s`` after the control is computed. ``bias_hat_b`` (None = 0) is compensated.
         ``parameters`` of the output holds the estimates (:data:`PARAMETER_NAMES`) and the
         reference-model pose ``y_M`` at this step (:data:`REFERENCE_MODEL_NAMES`), the pose the
@@ -828,16 +829,17 @@ class MracController:
         result = ERROR_INPUT
         if mask >= 0:
             try:
-                result = mrac_step(dt, eta_hat_n, nu_hat_b, bias, wind, reference.eta_d_n, reference.eta_dot_d_n,
-                                   reference.eta_ddot_d_n, mask, self._const, self._state, out)
+                result = mrac_step(dt, eta_hat_ned, nu_hat_b, bias, wind, reference.eta_d_ned, reference.eta_dot_d_ned,
+                                   reference.eta_ddot_d_ned, mask, self._const, self._state, out)
             except TypeError:
                 result = ERROR_INPUT
         if result < 0:  # the arguments checked in order and converted: the first invalid one raises ValueError
             eta, nu, mask, bias, wind = checked_state_inputs(
-                eta_hat_n, nu_hat_b, dof_enabled, bias_hat_b=bias_hat_b, tau_wind_ff_b=tau_wind_ff_b, zero3=self._zero3)
-            r = np.array(floats3("reference.eta_d_n", reference.eta_d_n))
-            rd = np.array(floats3("reference.eta_dot_d_n", reference.eta_dot_d_n))
-            rdd = np.array(floats3("reference.eta_ddot_d_n", reference.eta_ddot_d_n))
+                eta_hat_ned, nu_hat_b, dof_enabled, bias_hat_b=bias_hat_b, tau_wind_ff_b=tau_wind_ff_b,
+                zero3=self._zero3)
+            r = np.array(floats3("reference.eta_d_ned", reference.eta_d_ned))
+            rd = np.array(floats3("reference.eta_dot_d_ned", reference.eta_dot_d_ned))
+            rdd = np.array(floats3("reference.eta_ddot_d_ned", reference.eta_ddot_d_ned))
             result = mrac_step(dt, eta, nu, bias, wind, r, rd, rdd, mask, self._const, self._state, out)
         self._excited = result
         self._clock_s = now = self._clock_s + dt
@@ -856,7 +858,8 @@ class MracController:
                       "damping_sway_nspm": c1, "damping_yaw_nmsprad": c2, "ref_model_north_m": north,
                       "ref_model_east_m": east, "ref_model_heading_rad": heading}
         return ControlOutput(out[OUT_TAU:OUT_TAU + 3], out[OUT_ERROR:OUT_ERROR + 3],
-                             out[OUT_VELOCITY_ERROR:OUT_VELOCITY_ERROR + 3], parameters)
+                             out[OUT_VELOCITY_ERROR:OUT_VELOCITY_ERROR + 3], parameters,
+                             tracked_ned=out[OUT_REFERENCE_MODEL:OUT_REFERENCE_MODEL + 3])
 
     def mass_at_bound(self) -> int | None:
         """The first DOF (0 surge, 1 sway, 2 yaw) whose ``â₂`` sits on a projection bound, else None.

@@ -50,7 +50,7 @@ def model_measurement(x: np.ndarray, H: np.ndarray, i: int) -> tuple[float, floa
 
 @kernel(void(f8_2d, f8_2d, f8_1d, f8_2d, f8, f8, f8_1d, f8_1d))
 def bank_predicted_measurement(x: np.ndarray, H: np.ndarray, p: np.ndarray, S9: np.ndarray, c: float, s: float,
-                               mean_n: np.ndarray, var_n: np.ndarray) -> None:
+                               mean_ned: np.ndarray, var_ned: np.ndarray) -> None:
     """The bank's predicted measurement and innovation variance in NED (seed 000 eq. (16) for the mean).
 
     With the models' predictions ŷ_i = H x̄_i (vessel-parallel), m = Σ p_i ŷ_i, the spread
@@ -61,8 +61,8 @@ def bank_predicted_measurement(x: np.ndarray, H: np.ndarray, p: np.ndarray, S9: 
     ----------
     x : (N, n) prior states; H : (3, n); p : (N,) weights; S9 : (N, 9) innovation covariances S_i (row-major)
     c, s : cos ψ_f, sin ψ_f
-    mean_n : (3,) out — ŷ in NED [m, m, rad], heading wrapped
-    var_n : (3,) out — innovation variance diagonal in NED [m², m², rad²]
+    mean_ned : (3,) out — ŷ in NED [m, m, rad], heading wrapped
+    var_ned : (3,) out — innovation variance diagonal in NED [m², m², rad²]
     """
     N = x.shape[0]
     m0 = m1 = m2 = 0.0
@@ -87,16 +87,16 @@ def bank_predicted_measurement(x: np.ndarray, H: np.ndarray, p: np.ndarray, S9: 
         s11 += w * S9[i, 4]
         s22 += w * S9[i, 8]
     a00, a11, a22, cross = s00 + c00, s11 + c11, s22 + c22, s01 + s10 + 2.0 * c01
-    var_n[0] = c * c * a00 - c * s * cross + s * s * a11
-    var_n[1] = s * s * a00 + c * s * cross + c * c * a11
-    var_n[2] = a22
-    mean_n[0] = c * m0 - s * m1
-    mean_n[1] = s * m0 + c * m1
-    mean_n[2] = ssa(m2)
+    var_ned[0] = c * c * a00 - c * s * cross + s * s * a11
+    var_ned[1] = s * s * a00 + c * s * cross + c * c * a11
+    var_ned[2] = a22
+    mean_ned[0] = c * m0 - s * m1
+    mean_ned[1] = s * m0 + c * m1
+    mean_ned[2] = ssa(m2)
 
 
 @kernel(f8(i8, f8_1d, f8, i8, i8, i8, i8, i8, f8_2d, f8_2d, f8_3d, f8_1d, f8_2d, f8_2d, f8_1d))
-def bank_correct(code: int, y_n: np.ndarray, psi_frame: float, heading: int, wf0: int, rot_start: int,
+def bank_correct(code: int, y_ned: np.ndarray, psi_frame: float, heading: int, wf0: int, rot_start: int,
                  rot_blocks: int, flags: int, x: np.ndarray, H: np.ndarray, K: np.ndarray, p: np.ndarray,
                  x_post: np.ndarray, eps: np.ndarray, residual: np.ndarray) -> float:
     """Frame update and correction of every model with its steady-state gain (seed 002 eq. (51)).
@@ -116,7 +116,7 @@ def bank_correct(code: int, y_n: np.ndarray, psi_frame: float, heading: int, wf0
     ----------
     code : int
         Measurement pattern (north 1, east 2, heading 4; 0: nothing measured — predict only).
-    y_n : (3,) measurement [m, m, rad] in NED (read on the measured channels only)
+    y_ned : (3,) measurement [m, m, rad] in NED (read on the measured channels only)
     psi_frame : float
         Frame heading before this step [rad].
     heading, wf0 : int
@@ -138,7 +138,7 @@ def bank_correct(code: int, y_n: np.ndarray, psi_frame: float, heading: int, wf0
     N, n = x.shape
     # 1. frame heading
     if code & _HEADING_BIT:
-        psi_new = ssa(y_n[2])
+        psi_new = ssa(y_ned[2])
     else:
         total = 0.0
         for i in range(N):
@@ -172,9 +172,9 @@ def bank_correct(code: int, y_n: np.ndarray, psi_frame: float, heading: int, wf0
     s = math.sin(psi_new)
     use_pos = (code & _POSITION_BITS) == _POSITION_BITS
     use_psi = (code & _HEADING_BIT) != 0
-    yp0 = c * y_n[0] + s * y_n[1] if use_pos else 0.0
-    yp1 = -s * y_n[0] + c * y_n[1] if use_pos else 0.0
-    yp2 = y_n[2] if use_psi else 0.0
+    yp0 = c * y_ned[0] + s * y_ned[1] if use_pos else 0.0
+    yp1 = -s * y_ned[0] + c * y_ned[1] if use_pos else 0.0
+    yp2 = y_ned[2] if use_psi else 0.0
     wrap = 0.0
     for i in range(N):
         y0, y1, y2 = model_measurement(x, H, i)
@@ -202,9 +202,9 @@ def bank_correct(code: int, y_n: np.ndarray, psi_frame: float, heading: int, wf0
 
 @kernel(f8(f8_2d, f8_2d, f8_1d, f8_2d, f8, i8, i8, i8, f8_1d, f8_1d, f8_1d, f8_1d, f8_1d, f8_1d, f8_1d))
 def bank_outputs(x_post: np.ndarray, eps: np.ndarray, p: np.ndarray, P_post_diag: np.ndarray, psi_frame: float,
-                 eta0: int, wf0: int, lf_start: int, omegas: np.ndarray, x_hat: np.ndarray, eta_hat_n: np.ndarray,
-                 lf_tail: np.ndarray, eta_wf_hat_n: np.ndarray, covariance_diag: np.ndarray,
-                 innovation_n: np.ndarray) -> float:
+                 eta0: int, wf0: int, lf_start: int, omegas: np.ndarray, x_hat: np.ndarray, eta_hat_ned: np.ndarray,
+                 lf_tail: np.ndarray, eta_wf_hat_ned: np.ndarray, covariance_diag: np.ndarray,
+                 innovation_ned: np.ndarray) -> float:
     """The blended estimate and its outputs (seed 000 eq. (16); the mixture covariance diagonal).
 
     ``x̂ = Σ p_i x̂_i``; the heading states of every model are shifted by whole turns so that x̂'s heading
@@ -220,7 +220,7 @@ def bank_outputs(x_post: np.ndarray, eps: np.ndarray, p: np.ndarray, P_post_diag
     eta0, wf0, lf_start : int
         Index of ηp, of ξ2 (``NO_INDEX`` without wave states) and of the 6 LF states [bias, ν].
     omegas : (N,) model peak frequencies [rad/s]
-    x_hat, eta_hat_n, lf_tail, eta_wf_hat_n, covariance_diag, innovation_n : out — (n,), (3,), (6,), (3,),
+    x_hat, eta_hat_ned, lf_tail, eta_wf_hat_ned, covariance_diag, innovation_ned : out — (n,), (3,), (6,), (3,),
         (n,), (3,)
 
     Returns
@@ -244,16 +244,16 @@ def bank_outputs(x_post: np.ndarray, eps: np.ndarray, p: np.ndarray, P_post_diag
     c = math.cos(psi_frame)
     s = math.sin(psi_frame)
     xp, yp = x_hat[eta0], x_hat[eta0 + 1]
-    eta_hat_n[0] = c * xp - s * yp
-    eta_hat_n[1] = s * xp + c * yp
-    eta_hat_n[2] = ssa(x_hat[heading])
+    eta_hat_ned[0] = c * xp - s * yp
+    eta_hat_ned[1] = s * xp + c * yp
+    eta_hat_ned[2] = ssa(x_hat[heading])
     for j in range(6):
         lf_tail[j] = x_hat[lf_start + j]
     if wf0 != NO_INDEX:
         wx, wy = x_hat[wf0], x_hat[wf0 + 1]
-        eta_wf_hat_n[0] = c * wx - s * wy
-        eta_wf_hat_n[1] = s * wx + c * wy
-        eta_wf_hat_n[2] = x_hat[wf0 + 2]
+        eta_wf_hat_ned[0] = c * wx - s * wy
+        eta_wf_hat_ned[1] = s * wx + c * wy
+        eta_wf_hat_ned[2] = x_hat[wf0 + 2]
     for j in range(n):
         total = 0.0
         for i in range(N):
@@ -267,9 +267,9 @@ def bank_outputs(x_post: np.ndarray, eps: np.ndarray, p: np.ndarray, P_post_diag
         e1 += p[i] * eps[i, 1]
         e2 += p[i] * eps[i, 2]
         omega_hat += p[i] * omegas[i]
-    innovation_n[0] = c * e0 - s * e1
-    innovation_n[1] = s * e0 + c * e1
-    innovation_n[2] = e2
+    innovation_ned[0] = c * e0 - s * e1
+    innovation_ned[1] = s * e0 + c * e1
+    innovation_ned[2] = e2
     return omega_hat
 
 
@@ -361,7 +361,7 @@ def band_update(eps: np.ndarray, residual: np.ndarray, heading_scale_m: float, g
     """
     rows = state.shape[0]
     N = rows - 1
-    s_n = state.shape[2]
+    s_count = state.shape[2]
     gaps = (gap_position, gap_heading)
     dt = group[0, G_DT]
     for r in range(rows):
@@ -369,13 +369,13 @@ def band_update(eps: np.ndarray, residual: np.ndarray, heading_scale_m: float, g
             value = eps[r, ch] if r < N else residual[ch]
             if ch == 2:
                 value *= heading_scale_m
-            for k in range(2 + s_n):
+            for k in range(2 + s_count):
                 total = 0.0
-                for m in range(s_n):
+                for m in range(s_count):
                     total += state[r, ch, m] * CAt[ch, m, k]
                 yz[r, ch, k] = total + value * DB[ch, k]
             if gaps[1 if ch == 2 else 0] > 0:
-                for m in range(s_n):
+                for m in range(s_count):
                     state[r, ch, m] = yz[r, ch, 2 + m]
     # group energies (band, low), their short-window means; an unmeasured group keeps its means
     for g in range(2):

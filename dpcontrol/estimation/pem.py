@@ -211,6 +211,7 @@ class PemWaveFilter:
     kind = "pem"
 
     dead_reckons = True  # the LF vessel model with the force input (see WaveFilter)
+    force_model = True
 
     def __init__(self, config: WaveFilterConfig) -> None:
         if config.kind != "pem":
@@ -253,8 +254,8 @@ class PemWaveFilter:
         return self.inner.rejected_samples
 
     # -- protocol ---------------------------------------------------------------------------
-    def reset(self, y_n: np.ndarray) -> None:
-        self.inner.reset(y_n)
+    def reset(self, y_ned: np.ndarray) -> None:
+        self.inner.reset(y_ned)
         self._sync_output()
 
     def predicted_measurement(self) -> tuple[np.ndarray, np.ndarray]:
@@ -263,10 +264,10 @@ class PemWaveFilter:
     def set_frame_heading(self, psi_rad: float) -> None:
         self.inner.set_frame_heading(psi_rad)
 
-    def step(self, y_n: np.ndarray | None, tau_b: np.ndarray,
+    def step(self, y_ned: np.ndarray | None, tau_b: np.ndarray,
              measured: tuple[bool, bool, bool] = (True, True, True)) -> WaveFilterOutput:
-        out = self.inner.step(y_n, tau_b, measured)
-        self._append(y_n, out)
+        out = self.inner.step(y_ned, tau_b, measured)
+        self._append(y_ned, out)
         self._steps_to_next -= 1
         if self._steps_to_next <= 0:
             self._steps_to_next = self._interval
@@ -274,18 +275,18 @@ class PemWaveFilter:
         self._sync_output()
         return self.inner.output
 
-    def _append(self, y_n: np.ndarray | None, out: WaveFilterOutput) -> None:
+    def _append(self, y_ned: np.ndarray | None, out: WaveFilterOutput) -> None:
         """Record ``y − η̂_LF`` in body axes at the measured heading (NaN on unmeasured channels)."""
         row = self._record[self._count % self._window]
         row[:] = np.nan
         pos, _, psi_ok = out.measured
-        if y_n is not None and psi_ok:
+        if y_ned is not None and psi_ok:
             psi = float(self.inner._y[2])                 # the validated measurement of this step
-            row[2] = ssa(psi - float(out.eta_hat_n[2]))
-        if y_n is not None and pos:
-            c, s = math.cos(float(out.eta_hat_n[2])), math.sin(float(out.eta_hat_n[2]))
-            dn = float(self.inner._y[0]) - float(out.eta_hat_n[0])
-            de = float(self.inner._y[1]) - float(out.eta_hat_n[1])
+            row[2] = ssa(psi - float(out.eta_hat_ned[2]))
+        if y_ned is not None and pos:
+            c, s = math.cos(float(out.eta_hat_ned[2])), math.sin(float(out.eta_hat_ned[2]))
+            dn = float(self.inner._y[0]) - float(out.eta_hat_ned[0])
+            de = float(self.inner._y[1]) - float(out.eta_hat_ned[1])
             row[0] = c * dn + s * de
             row[1] = -s * dn + c * de
         self._count += 1

@@ -106,8 +106,8 @@ class RpemWaveFilter(FrameFilter):
         self.omega_hat = omega
 
     # -- protocol ---------------------------------------------------------------------------
-    def reset(self, y_n: np.ndarray) -> None:
-        y = self._check_reset(y_n)
+    def reset(self, y_ned: np.ndarray) -> None:
+        y = self._check_reset(y_ned)
         self._psi_frame = ssa(y[2])
         c, s = math.cos(self._psi_frame), math.sin(self._psi_frame)
         x = np.zeros(self.index.n)
@@ -123,16 +123,16 @@ class RpemWaveFilter(FrameFilter):
 
     def predicted_measurement(self) -> tuple[np.ndarray, np.ndarray]:
         if not self._initialized:
-            raise RuntimeError("wave filter not initialised: call reset(y_n) on the first fix")
+            raise RuntimeError("wave filter not initialised: call reset(y_ned) on the first fix")
         c, s = math.cos(self._psi_frame), math.sin(self._psi_frame)
         rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
         yhat = rot @ (self.filter.H @ self.filter.x)
         yhat[2] = ssa(float(yhat[2]))
         return yhat, np.diag(rot @ self.filter.innovation_covariance() @ rot.T).copy()
 
-    def step(self, y_n: np.ndarray | None, tau_b: np.ndarray,
+    def step(self, y_ned: np.ndarray | None, tau_b: np.ndarray,
              measured: tuple[bool, bool, bool] = (True, True, True)) -> WaveFilterOutput:
-        code = self._read_inputs(y_n, tau_b, measured)
+        code = self._read_inputs(y_ned, tau_b, measured)
         kf = self.filter
         H = kf.H
         psi_new = ssa(self._y[2]) if code & PATTERN_HEADING else ssa(float(H[2] @ kf.x))

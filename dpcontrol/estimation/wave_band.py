@@ -85,12 +85,12 @@ class WaveBandMeter:
         self._unwrap_heading = None
         self.steps = 0
 
-    def update(self, tau_b: np.ndarray, eta_hat_n: np.ndarray) -> None:
+    def update(self, tau_b: np.ndarray, eta_hat_ned: np.ndarray) -> None:
         """One period: commanded force [N, N, N·m] and LF pose estimate [m, m, rad] (NED)."""
         x = self._x
         x[0:3] = tau_b
-        x[3:5] = eta_hat_n[0:2]
-        psi = float(eta_hat_n[2])
+        x[3:5] = eta_hat_ned[0:2]
+        psi = float(eta_hat_ned[2])
         if self._unwrap_heading is not None:   # continuous heading: a ±π wrap is no wave
             psi = self._unwrap_heading + math.remainder(psi - self._unwrap_heading, 2.0 * math.pi)
         self._unwrap_heading = psi

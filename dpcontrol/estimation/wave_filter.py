@@ -49,11 +49,11 @@ Usage::
                                            omegas_rad_s=[0.3, 0.45, 0.6, 0.75, 0.9, 1.05, 1.2, 1.35],
                                            zeta=0.1, options={}, length_m=vessel.length_m)
     wave_filter = make_wave_filter(config)
-    wave_filter.reset(first_fix_n)
+    wave_filter.reset(first_fix_ned)
     ...
-    y_pred_n, innovation_var = wave_filter.predicted_measurement()   # sensor hub's jump test
-    out = wave_filter.step(y_n, tau_delivered_b, (pos_ok, pos_ok, heading_ok))
-    controller(out.eta_hat_n, out.nu_hat_b, out.bias_hat_b)
+    y_pred_ned, innovation_var = wave_filter.predicted_measurement()   # sensor hub's jump test
+    out = wave_filter.step(y_ned, tau_delivered_b, (pos_ok, pos_ok, heading_ok))
+    controller(out.eta_hat_ned, out.nu_hat_b, out.bias_hat_b)
 """
 
 from __future__ import annotations
@@ -88,13 +88,13 @@ class WaveFilterOutput:
 
     Attributes
     ----------
-    eta_hat_n : ndarray, shape (3,)
+    eta_hat_ned : ndarray, shape (3,)
         LF pose [north_m, east_m, psi_rad] in NED, heading wrapped with ``ssa``.
     nu_hat_b : ndarray, shape (3,)
         LF body velocity [u_mps, v_mps, r_radps].
     bias_hat_b : ndarray, shape (3,)
         Bias force in body axes [N, N, N·m] (vessel-parallel at the current heading).
-    eta_wf_hat_n : ndarray, shape (3,)
+    eta_wf_hat_ned : ndarray, shape (3,)
         WF motion [north_m, east_m, psi_rad] in NED (zeros for ``raw``).
     covariance_diag : ndarray, shape (n,)
         Diagonal of the estimation-error covariance of the full state (vessel-parallel coordinates,
@@ -113,10 +113,10 @@ class WaveFilterOutput:
         The channels actually used this step.
     """
 
-    eta_hat_n: np.ndarray
+    eta_hat_ned: np.ndarray
     nu_hat_b: np.ndarray
     bias_hat_b: np.ndarray
-    eta_wf_hat_n: np.ndarray
+    eta_wf_hat_ned: np.ndarray
     covariance_diag: np.ndarray
     innovation: np.ndarray
     weights: np.ndarray | None
@@ -126,8 +126,8 @@ class WaveFilterOutput:
 
     @property
     def eta_wf_hat(self) -> np.ndarray:
-        """Alias of :attr:`eta_wf_hat_n` (NED)."""
-        return self.eta_wf_hat_n
+        """Alias of :attr:`eta_wf_hat_ned` (NED)."""
+        return self.eta_wf_hat_ned
 
 
 @runtime_checkable
@@ -137,6 +137,10 @@ class WaveFilter(Protocol):
     ``dead_reckons``: the estimator's model carries the pose through a reference outage (a force input and a
     vessel model: every wave filter). A kinematic filter without one (seed 004's Kalman–Bucy) only extrapolates
     the last velocity, which the runtime does not hold position on (see ``FallbackSettings``).
+
+    ``force_model``: the estimator predicts with the DP vessel model ``M₀ν̇ + Dν = τ + Rᵀb`` (seed 002 eq. (12)),
+    so an inertia estimate (the MRAC's, seed 003) can replace ``M₀`` by scaling the force input
+    (``MassAdaptiveEstimator``); False for a filter without that model (Kalman–Bucy, the Nomoto autopilot's).
     """
 
     config: WaveFilterConfig
@@ -144,7 +148,10 @@ class WaveFilter(Protocol):
     @property
     def dead_reckons(self) -> bool: ...
 
-    def reset(self, y_n: np.ndarray) -> None:
+    @property
+    def force_model(self) -> bool: ...
+
+    def reset(self, y_ned: np.ndarray) -> None:
         """Initialise on a fix [north_m, east_m, psi_rad]: LF pose = y, everything else 0.
 
         What was learnt about the sea (MMAE weights, RPEM ω̂0) is kept when the filter was already
@@ -156,9 +163,9 @@ class WaveFilter(Protocol):
         """(ŷ⁻ (3,) NED predicted for the next step, innovation variance diagonal (3,) in NED)."""
         ...
 
-    def step(self, y_n: np.ndarray | None, tau_b: np.ndarray,
+    def step(self, y_ned: np.ndarray | None, tau_b: np.ndarray,
              measured: tuple[bool, bool, bool] = (True, True, True)) -> WaveFilterOutput:
-        """One period: correct with y_n on the measured channels, then predict with τ_b [N, N, N·m]."""
+        """One period: correct with y_ned on the measured channels, then predict with τ_b [N, N, N·m]."""
         ...
 
     def state_dict(self) -> dict[str, Any]:
@@ -193,6 +200,7 @@ class FrameFilter:
 
     kind: str
     dead_reckons = True  # the LF vessel model with the force input (see WaveFilter)
+    force_model = True
 
     def __init__(self, config: WaveFilterConfig, index: StateIndex) -> None:
         self.config = config
@@ -212,14 +220,14 @@ class FrameFilter:
         self._lf_slice = slice(index.bias.start, index.nu.stop)
         self._wf0 = None if index.xi2 is None else index.xi2.start
         self.output = WaveFilterOutput(
-            eta_hat_n=np.zeros(3), nu_hat_b=self._lf_tail[3:6], bias_hat_b=self._lf_tail[0:3],
-            eta_wf_hat_n=np.zeros(3),
+            eta_hat_ned=np.zeros(3), nu_hat_b=self._lf_tail[3:6], bias_hat_b=self._lf_tail[0:3],
+            eta_wf_hat_ned=np.zeros(3),
             covariance_diag=np.zeros(n), innovation=np.zeros(3), weights=None, omegas_rad_s=(),
             omega_hat_rad_s=None)
         self.rejected_samples = 0
 
     # -- inputs -------------------------------------------------------------------------------
-    def _read_inputs(self, y_n: np.ndarray | None, tau_b: np.ndarray,
+    def _read_inputs(self, y_ned: np.ndarray | None, tau_b: np.ndarray,
                      measured: tuple[bool, bool, bool]) -> int:
         """Validate; fill ``self._y``/``self._tau``; return the availability pattern code.
 
@@ -227,7 +235,7 @@ class FrameFilter:
         are not finite only drop their channel (a sensor must not crash the loop).
         """
         if not self._initialized:
-            raise RuntimeError("wave filter not initialised: call reset(y_n) on the first fix")
+            raise RuntimeError("wave filter not initialised: call reset(y_ned) on the first fix")
         try:
             t0, t1, t2 = float(tau_b[0]), float(tau_b[1]), float(tau_b[2])
         except (TypeError, ValueError, IndexError):
@@ -240,14 +248,14 @@ class FrameFilter:
         tau[0] = t0
         tau[1] = t1
         tau[2] = t2
-        if y_n is None:
+        if y_ned is None:
             return PATTERN_NONE
         use_pos = bool(measured[0]) and bool(measured[1])
         use_psi = bool(measured[2])
         y = self._y
         try:
             if use_pos:
-                north, east = float(y_n[0]), float(y_n[1])
+                north, east = float(y_ned[0]), float(y_ned[1])
                 if math.isfinite(north) and math.isfinite(east):
                     y[0] = north
                     y[1] = east
@@ -255,7 +263,7 @@ class FrameFilter:
                     use_pos = False
                     self.rejected_samples += 1
             if use_psi:
-                psi = float(y_n[2])
+                psi = float(y_ned[2])
                 if math.isfinite(psi):
                     y[2] = psi
                 else:
@@ -266,10 +274,10 @@ class FrameFilter:
             return PATTERN_NONE
         return (_POSITION if use_pos else 0) | (PATTERN_HEADING if use_psi else 0)
 
-    def _check_reset(self, y_n: np.ndarray) -> list[float]:
-        y = _as_floats(y_n, 3, "y_n")
+    def _check_reset(self, y_ned: np.ndarray) -> list[float]:
+        y = _as_floats(y_ned, 3, "y_ned")
         if not all(math.isfinite(v) for v in y):
-            raise ValueError(f"reset needs a finite fix [north_m, east_m, psi_rad], got {y_n!r}")
+            raise ValueError(f"reset needs a finite fix [north_m, east_m, psi_rad], got {y_ned!r}")
         return y
 
     # -- frame ------------------------------------------------------------------------------
@@ -309,12 +317,12 @@ class FrameFilter:
         v = x_hat.tolist()                  # Python floats: cheaper than numpy scalars for a few values
         e0 = self._eta0
         xp, yp = v[e0], v[e0 + 1]
-        out.eta_hat_n[:] = (c * xp - s * yp, s * xp + c * yp, ssa(v[e0 + 2]))
+        out.eta_hat_ned[:] = (c * xp - s * yp, s * xp + c * yp, ssa(v[e0 + 2]))
         np.copyto(self._lf_tail, x_hat[self._lf_slice])   # bias_hat_b and nu_hat_b are views
         w0 = self._wf0
         if w0 is not None:
             wx, wy = v[w0], v[w0 + 1]
-            out.eta_wf_hat_n[:] = (c * wx - s * wy, s * wx + c * wy, v[w0 + 2])
+            out.eta_wf_hat_ned[:] = (c * wx - s * wy, s * wx + c * wy, v[w0 + 2])
 
     def _write_innovation(self, eps_p: np.ndarray) -> None:
         """Innovation (vessel-parallel) → NED in the output."""
@@ -438,8 +446,8 @@ class BankWaveFilter(FrameFilter):
         self._S9 = np.ascontiguousarray(self.S_prior.reshape(N, 9))
         self._omegas_k = np.zeros(N)                  # Σ p_i ω_i in the kernel (zeros for raw: unused)
         self._omegas_k[: self.omegas.size] = self.omegas
-        self._pm_mean_n = np.zeros(3)
-        self._pm_var_n = np.zeros(3)
+        self._pm_mean_ned = np.zeros(3)
+        self._pm_var_ned = np.zeros(3)
         self._band_weights = self.band_likelihood is not None
         out = self.output
         out.omegas_rad_s = tuple(float(w) for w in self.omegas)
@@ -447,8 +455,8 @@ class BankWaveFilter(FrameFilter):
         out.omega_hat_rad_s = float(self.omegas[0]) if kind == "kf" else None
 
     # -- protocol ---------------------------------------------------------------------------
-    def reset(self, y_n: np.ndarray) -> None:
-        y = self._check_reset(y_n)
+    def reset(self, y_ned: np.ndarray) -> None:
+        y = self._check_reset(y_ned)
         self._psi_frame = ssa(y[2])
         c, s = math.cos(self._psi_frame), math.sin(self._psi_frame)
         self.x[:] = 0.0
@@ -476,15 +484,15 @@ class BankWaveFilter(FrameFilter):
         reused by the next call.
         """
         if not self._initialized:
-            raise RuntimeError("wave filter not initialised: call reset(y_n) on the first fix")
+            raise RuntimeError("wave filter not initialised: call reset(y_ned) on the first fix")
         psi = self._psi_frame
         bank_predicted_measurement(self.x, self._H, self.p, self._S9, math.cos(psi), math.sin(psi),
-                                   self._pm_mean_n, self._pm_var_n)
-        return self._pm_mean_n, self._pm_var_n
+                                   self._pm_mean_ned, self._pm_var_ned)
+        return self._pm_mean_ned, self._pm_var_ned
 
-    def step(self, y_n: np.ndarray | None, tau_b: np.ndarray,
+    def step(self, y_ned: np.ndarray | None, tau_b: np.ndarray,
              measured: tuple[bool, bool, bool] = (True, True, True)) -> WaveFilterOutput:
-        code = self._read_inputs(y_n, tau_b, measured)
+        code = self._read_inputs(y_ned, tau_b, measured)
         slot = self._code_slot[code]
         # 1.–2. frame heading (the measured heading, else the predicted total heading) and correction with
         # the pattern's steady-state gains, x̂ = x̄ + K ε (seed 002 eq. (51))
@@ -508,7 +516,7 @@ class BankWaveFilter(FrameFilter):
             self._rotate_states(self.x, dpsi)
         self._psi_frame = psi_rad
 
-    def model_lf_poses_n(self) -> np.ndarray:
+    def model_lf_poses_ned(self) -> np.ndarray:
         """LF pose estimate of every model after the last correction, (N, 3) NED [m, m, rad].
 
         Each row is what that model's steady-state filter alone would output (the filters of the bank
@@ -562,7 +570,7 @@ class BankWaveFilter(FrameFilter):
         out = self.output
         omega_hat = bank_outputs(self._x_post, self._eps, self.p, self._P_post_diag_slots[self._code_slot[code]],
                                  self._psi_frame, self._eta0, self._wf0_k, self._lf_slice.start, self._omegas_k,
-                                 self._x_hat, out.eta_hat_n, self._lf_tail, out.eta_wf_hat_n, out.covariance_diag,
+                                 self._x_hat, out.eta_hat_ned, self._lf_tail, out.eta_wf_hat_ned, out.covariance_diag,
                                  out.innovation)
         out.measured = PATTERN_MEASURED[code]
         if self.kind == "mmae":
@@ -637,8 +645,8 @@ class TimeVaryingWaveFilter(FrameFilter):
         self.output.omegas_rad_s = (float(omega),)
         self.output.omega_hat_rad_s = float(omega)
 
-    def reset(self, y_n: np.ndarray) -> None:
-        y = self._check_reset(y_n)
+    def reset(self, y_ned: np.ndarray) -> None:
+        y = self._check_reset(y_ned)
         self._psi_frame = ssa(y[2])
         c, s = math.cos(self._psi_frame), math.sin(self._psi_frame)
         x = np.zeros(self.index.n)
@@ -653,16 +661,16 @@ class TimeVaryingWaveFilter(FrameFilter):
 
     def predicted_measurement(self) -> tuple[np.ndarray, np.ndarray]:
         if not self._initialized:
-            raise RuntimeError("wave filter not initialised: call reset(y_n) on the first fix")
+            raise RuntimeError("wave filter not initialised: call reset(y_ned) on the first fix")
         c, s = math.cos(self._psi_frame), math.sin(self._psi_frame)
         rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
         yhat = rot @ (self.filter.H @ self.filter.x)
         yhat[2] = ssa(float(yhat[2]))
         return yhat, np.diag(rot @ self.filter.innovation_covariance() @ rot.T).copy()
 
-    def step(self, y_n: np.ndarray | None, tau_b: np.ndarray,
+    def step(self, y_ned: np.ndarray | None, tau_b: np.ndarray,
              measured: tuple[bool, bool, bool] = (True, True, True)) -> WaveFilterOutput:
-        code = self._read_inputs(y_n, tau_b, measured)
+        code = self._read_inputs(y_ned, tau_b, measured)
         kf = self.filter
         psi_new = ssa(self._y[2]) if code & PATTERN_HEADING else ssa(float(kf.H[2] @ kf.x))
         self.set_frame_heading(psi_new)

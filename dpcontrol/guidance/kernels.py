@@ -61,12 +61,12 @@ def reference_step(dt: float, r: np.ndarray, const: np.ndarray, state: np.ndarra
     """
     if r.size != 3 or not (math.isfinite(r[0]) and math.isfinite(r[1]) and math.isfinite(r[2])):
         return False
-    w_n = const[K_OMEGA]
-    w_e = const[K_OMEGA + 1]
-    w_p = const[K_OMEGA + 2]
-    z_n = const[K_ZETA]
-    z_e = const[K_ZETA + 1]
-    z_p = const[K_ZETA + 2]
+    omega_north = const[K_OMEGA]
+    omega_east = const[K_OMEGA + 1]
+    omega_psi = const[K_OMEGA + 2]
+    zeta_north = const[K_ZETA]
+    zeta_east = const[K_ZETA + 1]
+    zeta_psi = const[K_ZETA + 2]
     vmax = const[K_SPEED]
     amax = const[K_ACCEL]
     rmax = const[K_YAW_RATE]
@@ -74,62 +74,62 @@ def reference_step(dt: float, r: np.ndarray, const: np.ndarray, state: np.ndarra
     steps = math.ceil(dt * const[K_RATE] / STEP_ACCURACY)
     substeps = steps if steps > 1 else 1
     h = dt / substeps
-    r_n = r[0]
-    r_e = r[1]
+    r_north = r[0]
+    r_east = r[1]
     r_psi = ssa(r[2])
-    rf_n, rf_e, rf_p = state[S_PREFILTER, 0], state[S_PREFILTER, 1], state[S_PREFILTER, 2]
-    x_n, x_e, x_p = state[S_ETA, 0], state[S_ETA, 1], state[S_ETA, 2]
-    v_n, v_e, v_p = state[S_VELOCITY, 0], state[S_VELOCITY, 1], state[S_VELOCITY, 2]
-    a_n = a_e = a_p = 0.0
+    rf_north, rf_east, rf_psi = state[S_PREFILTER, 0], state[S_PREFILTER, 1], state[S_PREFILTER, 2]
+    x_north, x_east, x_psi = state[S_ETA, 0], state[S_ETA, 1], state[S_ETA, 2]
+    v_north, v_east, v_psi = state[S_VELOCITY, 0], state[S_VELOCITY, 1], state[S_VELOCITY, 2]
+    a_north = a_east = a_psi = 0.0
     for _ in range(substeps):
         # first-order pre-filter (heading error by ssa: the short way round)
-        rf_n += h * w_n * (r_n - rf_n)
-        rf_e += h * w_e * (r_e - rf_e)
-        rf_p = ssa(rf_p + h * w_p * ssa(r_psi - rf_p))
+        rf_north += h * omega_north * (r_north - rf_north)
+        rf_east += h * omega_east * (r_east - rf_east)
+        rf_psi = ssa(rf_psi + h * omega_psi * ssa(r_psi - rf_psi))
         # commanded velocity of the mass–spring–damper, limited by speed and braking distance
-        e_n = rf_n - x_n
-        e_e = rf_e - x_e
-        e_p = ssa(rf_p - x_p)
-        vc_n = w_n / (2.0 * z_n) * e_n
-        vc_e = w_e / (2.0 * z_e) * e_e
-        speed = math.hypot(vc_n, vc_e)
-        limit = _py_min(vmax, math.sqrt(amax * math.hypot(e_n, e_e)))
+        e_north = rf_north - x_north
+        e_east = rf_east - x_east
+        e_psi = ssa(rf_psi - x_psi)
+        vc_north = omega_north / (2.0 * zeta_north) * e_north
+        vc_east = omega_east / (2.0 * zeta_east) * e_east
+        speed = math.hypot(vc_north, vc_east)
+        limit = _py_min(vmax, math.sqrt(amax * math.hypot(e_north, e_east)))
         if speed > limit:
             scale = limit / speed
-            vc_n *= scale
-            vc_e *= scale
-        vc_p = w_p / (2.0 * z_p) * e_p
-        limit = _py_min(rmax, math.sqrt(rdotmax * abs(e_p)))
-        if abs(vc_p) > limit:
-            vc_p = math.copysign(limit, vc_p)
+            vc_north *= scale
+            vc_east *= scale
+        vc_psi = omega_psi / (2.0 * zeta_psi) * e_psi
+        limit = _py_min(rmax, math.sqrt(rdotmax * abs(e_psi)))
+        if abs(vc_psi) > limit:
+            vc_psi = math.copysign(limit, vc_psi)
         # acceleration, limited (horizontal as a vector)
-        a_n = 2.0 * z_n * w_n * (vc_n - v_n)
-        a_e = 2.0 * z_e * w_e * (vc_e - v_e)
-        accel = math.hypot(a_n, a_e)
+        a_north = 2.0 * zeta_north * omega_north * (vc_north - v_north)
+        a_east = 2.0 * zeta_east * omega_east * (vc_east - v_east)
+        accel = math.hypot(a_north, a_east)
         if accel > amax:
             scale = amax / accel
-            a_n *= scale
-            a_e *= scale
-        a_p = 2.0 * z_p * w_p * (vc_p - v_p)
-        if abs(a_p) > rdotmax:
-            a_p = math.copysign(rdotmax, a_p)
+            a_north *= scale
+            a_east *= scale
+        a_psi = 2.0 * zeta_psi * omega_psi * (vc_psi - v_psi)
+        if abs(a_psi) > rdotmax:
+            a_psi = math.copysign(rdotmax, a_psi)
         # semi-implicit Euler
-        v_n += h * a_n
-        v_e += h * a_e
-        v_p += h * a_p
-        x_n += h * v_n
-        x_e += h * v_e
-        x_p = ssa(x_p + h * v_p)
-    state[S_PREFILTER, 0] = rf_n
-    state[S_PREFILTER, 1] = rf_e
-    state[S_PREFILTER, 2] = rf_p
-    state[S_ETA, 0] = x_n
-    state[S_ETA, 1] = x_e
-    state[S_ETA, 2] = x_p
-    state[S_VELOCITY, 0] = v_n
-    state[S_VELOCITY, 1] = v_e
-    state[S_VELOCITY, 2] = v_p
-    state[S_ACCEL, 0] = a_n
-    state[S_ACCEL, 1] = a_e
-    state[S_ACCEL, 2] = a_p
+        v_north += h * a_north
+        v_east += h * a_east
+        v_psi += h * a_psi
+        x_north += h * v_north
+        x_east += h * v_east
+        x_psi = ssa(x_psi + h * v_psi)
+    state[S_PREFILTER, 0] = rf_north
+    state[S_PREFILTER, 1] = rf_east
+    state[S_PREFILTER, 2] = rf_psi
+    state[S_ETA, 0] = x_north
+    state[S_ETA, 1] = x_east
+    state[S_ETA, 2] = x_psi
+    state[S_VELOCITY, 0] = v_north
+    state[S_VELOCITY, 1] = v_east
+    state[S_VELOCITY, 2] = v_psi
+    state[S_ACCEL, 0] = a_north
+    state[S_ACCEL, 1] = a_east
+    state[S_ACCEL, 2] = a_psi
     return True

@@ -117,22 +117,22 @@ class Reference:
 
     Attributes
     ----------
-    eta_d_n : ndarray, shape (3,)
+    eta_d_ned : ndarray, shape (3,)
         Desired pose ``[north_m, east_m, psi_rad]``.
-    eta_dot_d_n : ndarray, shape (3,)
+    eta_dot_d_ned : ndarray, shape (3,)
         Desired NED velocity ``[m/s, m/s, rad/s]``.
-    eta_ddot_d_n : ndarray, shape (3,)
+    eta_ddot_d_ned : ndarray, shape (3,)
         Desired NED acceleration ``[m/s², m/s², rad/s²]``.
     """
 
-    eta_d_n: np.ndarray
-    eta_dot_d_n: np.ndarray
-    eta_ddot_d_n: np.ndarray
+    eta_d_ned: np.ndarray
+    eta_dot_d_ned: np.ndarray
+    eta_ddot_d_ned: np.ndarray
 
     @staticmethod
-    def hold(eta_n: np.ndarray) -> Reference:
-        """A reference at rest at ``eta_n`` (e.g. for tests or station keeping without guidance)."""
-        return Reference(np.array(eta_n, dtype=float), np.zeros(3), np.zeros(3))
+    def hold(eta_ned: np.ndarray) -> Reference:
+        """A reference at rest at ``eta_ned`` (e.g. for tests or station keeping without guidance)."""
+        return Reference(np.array(eta_ned, dtype=float), np.zeros(3), np.zeros(3))
 
 
 def default_reference_config(vessel: VesselData) -> ReferenceModelConfig:
@@ -255,20 +255,20 @@ class ReferenceModel:
         """Whether the model holds a state (after :meth:`reset`, :meth:`step` or a loaded state)."""
         return self._initialised
 
-    def reset(self, eta_n: np.ndarray, nu_n: np.ndarray | None = None) -> None:
+    def reset(self, eta_ned: np.ndarray, nu_ned: np.ndarray | None = None) -> None:
         """Start the reference at the current estimate (bumpless entry into DP).
 
         Parameters
         ----------
-        eta_n : array_like, shape (3,)
+        eta_ned : array_like, shape (3,)
             Current pose ``[north_m, east_m, psi_rad]``.
-        nu_n : array_like, shape (3,), optional
+        nu_ned : array_like, shape (3,), optional
             Current velocity **in NED** ``η̇ = R(ψ)ν`` ``[m/s, m/s, rad/s]`` (zero if omitted). The
             pre-filter state is placed so that the commanded velocity equals it: the reference
             then decelerates smoothly instead of jumping to rest.
         """
-        north, east, psi = _finite3("eta_n", eta_n)
-        v = (0.0, 0.0, 0.0) if nu_n is None else _finite3("nu_n", nu_n)
+        north, east, psi = _finite3("eta_ned", eta_ned)
+        v = (0.0, 0.0, 0.0) if nu_ned is None else _finite3("nu_ned", nu_ned)
         x = [north, east, ssa(psi)]
         # v_c = ω/(2ζ)(r_f − η_d) = v  ⇒  r_f = η_d + 2ζ/ω · v
         rf = [x[i] + 2.0 * self._zeta[i] / self._omega[i] * v[i] for i in range(3)]
@@ -285,14 +285,14 @@ class ReferenceModel:
         state = self._state.copy()  # (one copy, three views of it)
         return Reference(state[S_ETA], state[S_VELOCITY], state[S_ACCEL])
 
-    def step(self, dt_s: float, setpoint_eta_n: np.ndarray) -> Reference:
-        """Advance the model by ``dt_s`` towards ``setpoint_eta_n``.
+    def step(self, dt_s: float, setpoint_eta_ned: np.ndarray) -> Reference:
+        """Advance the model by ``dt_s`` towards ``setpoint_eta_ned``.
 
         Parameters
         ----------
         dt_s : float
             Sample time [s] (>= 0; 0 returns the current reference).
-        setpoint_eta_n : array_like, shape (3,)
+        setpoint_eta_ned : array_like, shape (3,)
             Operator set-point ``[north_m, east_m, psi_rad]`` (heading any wrap).
 
         Returns
@@ -309,11 +309,11 @@ class ReferenceModel:
             raise ValueError(f"dt_s must be finite and >= 0, got {dt_s!r}")
         if self._initialised and dt_s > 0.0:  # the per-cycle case: the kernel checks the set-point
             try:
-                if reference_step(dt_s, setpoint_eta_n, self._const, self._state):
+                if reference_step(dt_s, setpoint_eta_ned, self._const, self._state):
                     return self.current()
             except TypeError:  # not a writable float64 vector: converted below
                 pass
-        setpoint = np.array(_finite3("setpoint_eta_n", setpoint_eta_n))  # (a ValueError leaves the state)
+        setpoint = np.array(_finite3("setpoint_eta_n", setpoint_eta_ned))  # (a ValueError leaves the state)
         if not self._initialised:
             self.reset(setpoint)
         if dt_s == 0.0:

@@ -155,10 +155,10 @@ class DeviationMonitor:
         self.position_m: float | None = None
         self.heading_rad: float | None = None
 
-    def update(self, t_s: float, mode: str, eta_hat_n: np.ndarray | None, eta_d_n: np.ndarray | None) -> None:
+    def update(self, t_s: float, mode: str, eta_hat_ned: np.ndarray | None, eta_d_ned: np.ndarray | None) -> None:
         """One step at ``t_s`` [s] in ``mode``: the estimate η̂ and the pose tracked (η_d, or the MRAC's y_M)
         ``[m, m, rad]`` (NED; None when there is none, e.g. in standby)."""
-        if eta_hat_n is None or eta_d_n is None or mode not in _HEADING_MODES:
+        if eta_hat_ned is None or eta_d_ned is None or mode not in _HEADING_MODES:
             self.position_m = self.heading_rad = None
             if self._any_raised:
                 self._rest(t_s)
@@ -166,8 +166,8 @@ class DeviationMonitor:
                 self._drift_release(t_s, drift)
             return
         # Python floats: a handful of scalars per step (numpy scalar arithmetic costs several times more)
-        n_hat, e_hat, psi_hat = eta_hat_n.tolist()
-        n_d, e_d, psi_d = eta_d_n.tolist()
+        n_hat, e_hat, psi_hat = eta_hat_ned.tolist()
+        n_d, e_d, psi_d = eta_d_ned.tolist()
         heading = abs(math.remainder(psi_hat - psi_d, math.tau))
         self.heading_rad = heading
         for limit in self._heading:

@@ -29,8 +29,8 @@ _NO_WEIGHTS: tuple[float, ...] = ()
 
 
 def _output(n_states: int) -> WaveFilterOutput:
-    return WaveFilterOutput(eta_hat_n=np.zeros(3), nu_hat_b=np.zeros(3), bias_hat_b=np.zeros(3),
-                            eta_wf_hat_n=np.zeros(3), covariance_diag=np.zeros(n_states), innovation=np.zeros(3),
+    return WaveFilterOutput(eta_hat_ned=np.zeros(3), nu_hat_b=np.zeros(3), bias_hat_b=np.zeros(3),
+                            eta_wf_hat_ned=np.zeros(3), covariance_diag=np.zeros(n_states), innovation=np.zeros(3),
                             weights=None, omegas_rad_s=_NO_WEIGHTS, omega_hat_rad_s=None,
                             measured=(False, False, False))
 
@@ -70,6 +70,7 @@ class KalmanBucyEstimator:
 
     kind = "kalman_bucy"
     dead_reckons = False  # no force input: the last velocity, extrapolated (see WaveFilter)
+    force_model = False
 
     def __init__(self, sample_time_s: float, *, process_noise_scale: float = 0.02) -> None:
         for name, value in (("sample_time_s", sample_time_s), ("process_noise_scale", process_noise_scale)):
@@ -88,10 +89,10 @@ class KalmanBucyEstimator:
         """The ``Q`` the filter runs with (shape (6, 6), seed 004 units converted to SI)."""
         return self._q.copy()
 
-    def reset(self, y_n: np.ndarray) -> None:
+    def reset(self, y_ned: np.ndarray) -> None:
         x0 = np.zeros(6)
-        x0[POSITION] = y_n
-        x0[POSITION[2]] = ssa(float(y_n[2]))
+        x0[POSITION] = y_ned
+        x0[POSITION[2]] = ssa(float(y_ned[2]))
         model = self._model
         # P0 (seed 004 eq. (46) gives no value): the positions come from one sample, so its variance; the
         # rates are unknown at a reset, 1 m/s and 2 °/s (1σ). P0 = I (1 rad² of heading against a 0.1 deg²
@@ -115,17 +116,17 @@ class KalmanBucyEstimator:
         variance = np.diag(f.P)[POSITION] + np.diag(self._model.R_sample)
         return x_next, variance
 
-    def step(self, y_n: np.ndarray | None, tau_b: np.ndarray,
+    def step(self, y_ned: np.ndarray | None, tau_b: np.ndarray,
              measured: tuple[bool, bool, bool] = (True, True, True)) -> WaveFilterOutput:
-        """One period: correct the measured channels of ``y_n`` continuously, predict the others."""
+        """One period: correct the measured channels of ``y_ned`` continuously, predict the others."""
         del tau_b  # kinematic model: no force input (seed 004 eqs. (53)–(58) with X = Y = N = 0)
         f = self._require()
-        pattern = (False, False, False) if y_n is None else (bool(measured[0]), bool(measured[1]), bool(measured[2]))
+        pattern = (False, False, False) if y_ned is None else (bool(measured[0]), bool(measured[1]), bool(measured[2]))
         y = f.x[POSITION].copy()
-        if y_n is not None:
+        if y_ned is not None:
             for i in range(3):
                 if pattern[i]:
-                    y[i] = float(y_n[i])
+                    y[i] = float(y_ned[i])
             y[2] = f.x[POSITION][2] + ssa(y[2] - f.x[POSITION][2])  # continuous heading next to the state
         innovation = y - f.x[POSITION]
         # The filter object exposes Cᵀ R⁻¹ (and Cᵀ R⁻¹ C) as attributes; swapping them per pattern is
@@ -134,7 +135,7 @@ class KalmanBucyEstimator:
         f.step(y)
         out = self._out
         pose = f.x[POSITION]
-        out.eta_hat_n[:] = (pose[0], pose[1], ssa(pose[2]))
+        out.eta_hat_ned[:] = (pose[0], pose[1], ssa(pose[2]))
         out.nu_hat_b[:] = ned_to_body(f.x[VELOCITY], pose[2])  # seed 004 eq. (60)
         out.covariance_diag[:] = np.diag(f.P)
         out.innovation[:] = innovation
@@ -211,6 +212,7 @@ class CourseKeepingEstimator:
     kind = "heading_kf"
 
     dead_reckons = True  # the Nomoto model with the rudder input carries the heading
+    force_model = False  # the Nomoto model, not the DP vessel model
 
     def __init__(self, vessel: VesselData, sample_time_s: float, *, omega0_rad_s: float = 1.2, zeta: float = 0.1,
                  compass_std_rad: float = math.radians(0.5), wave_yaw_std_rad: float = math.radians(3.0),
@@ -246,9 +248,9 @@ class CourseKeepingEstimator:
         """The continuous model (seed 002 eqs. (75)–(81)) the filter runs on."""
         return self._model
 
-    def reset(self, y_n: np.ndarray) -> None:
-        self._filter = HeadingKalmanFilter(self._model, self._dt, float(y_n[2]))
-        self._position[:] = y_n[:2]
+    def reset(self, y_ned: np.ndarray) -> None:
+        self._filter = HeadingKalmanFilter(self._model, self._dt, float(y_ned[2]))
+        self._position[:] = y_ned[:2]
 
     def predicted_measurement(self) -> tuple[np.ndarray, np.ndarray]:
         f = self._require().filter
@@ -256,18 +258,18 @@ class CourseKeepingEstimator:
         variance = float(f.H[0] @ f.P @ f.H[0]) + float(self._model.R[0, 0])
         return np.array([self._position[0], self._position[1], ssa(psi)]), np.array([25.0, 25.0, variance])
 
-    def step(self, y_n: np.ndarray | None, tau_b: np.ndarray,
+    def step(self, y_ned: np.ndarray | None, tau_b: np.ndarray,
              measured: tuple[bool, bool, bool] = (True, True, True)) -> WaveFilterOutput:
         """Filter the heading; ``tau_b[2]`` carries the rudder angle [rad] (Nomoto sign)."""
         f = self._require()
-        heading = None if y_n is None or not measured[2] else float(y_n[2])
-        if y_n is not None and measured[0] and measured[1]:
-            self._position[:] = y_n[:2]
+        heading = None if y_ned is None or not measured[2] else float(y_ned[2])
+        if y_ned is not None and measured[0] and measured[1]:
+            self._position[:] = y_ned[:2]
         estimate = f.step(heading, float(tau_b[2]))
         out = self._out
-        out.eta_hat_n[:] = (self._position[0], self._position[1], estimate.psi_hat_rad)
+        out.eta_hat_ned[:] = (self._position[0], self._position[1], estimate.psi_hat_rad)
         out.nu_hat_b[:] = (0.0, 0.0, estimate.r_hat_radps)
-        out.eta_wf_hat_n[:] = (0.0, 0.0, estimate.psi_wf_hat_rad)
+        out.eta_wf_hat_ned[:] = (0.0, 0.0, estimate.psi_wf_hat_rad)
         out.bias_hat_b[:] = (0.0, 0.0, self._inertia * estimate.bias_hat_radps2)  # m b̂ [N·m]
         out.covariance_diag[:] = np.diag(f.filter.P)
         out.measured = (False, False, heading is not None)
@@ -328,6 +330,10 @@ class MassAdaptiveEstimator:
     def dead_reckons(self) -> bool:
         return self.inner.dead_reckons
 
+    @property
+    def force_model(self) -> bool:
+        return self.inner.force_model
+
     def __init__(self, inner: WaveFilter, mass_nominal: np.ndarray) -> None:
         nominal = np.array(mass_nominal, dtype=float)
         if nominal.shape != (3,) or not np.all(np.isfinite(nominal)) or np.any(nominal <= 0.0):
@@ -358,17 +364,17 @@ class MassAdaptiveEstimator:
         good = np.isfinite(mass) & (mass > 0.0)
         self._ratio[good] = mass[good] / self._nominal[good]
 
-    def reset(self, y_n: np.ndarray) -> None:
-        self.inner.reset(y_n)
+    def reset(self, y_ned: np.ndarray) -> None:
+        self.inner.reset(y_ned)
 
     def predicted_measurement(self) -> tuple[np.ndarray, np.ndarray]:
         return self.inner.predicted_measurement()
 
-    def step(self, y_n: np.ndarray | None, tau_b: np.ndarray,
+    def step(self, y_ned: np.ndarray | None, tau_b: np.ndarray,
              measured: tuple[bool, bool, bool] = (True, True, True)) -> WaveFilterOutput:
         """The inner step with ``τ' = M₀ M̂⁻¹ τ``; the output's bias in physical units (own array)."""
         np.divide(tau_b, self._ratio, out=self._tau)
-        inner = self.inner.step(y_n, self._tau, measured)
+        inner = self.inner.step(y_ned, self._tau, measured)
         # one output object reused (as the inner filter's): its fields are the inner's (the same arrays)
         # but its own bias — a dict update instead of copy.copy of a new object every step
         out = self._out

@@ -43,7 +43,7 @@ from dpcontrol.guidance import Reference, ReferenceModel
 from dpcontrol.runtime.alarms import AlarmRegistry, Severity
 from dpcontrol.runtime.consequence import ConsequenceMonitor, ConsequenceReport
 from dpcontrol.runtime.deviation import DeviationMonitor
-from dpcontrol.runtime.estimators import WAVE_FILTER_KINDS, MassAdaptiveEstimator, make_estimator
+from dpcontrol.runtime.estimators import MassAdaptiveEstimator, make_estimator
 from dpcontrol.runtime.hub import HubOutput, SensorHub
 from dpcontrol.runtime.thruster_monitor import ThrusterFeedback, ThrusterMonitor
 from interfaces.messages import Measurement
@@ -82,7 +82,7 @@ class StepOutput:
         Thrusters in use (unavailable ones are commanded zero).
     tau_b, tau_achieved_b, shortfall_b : ndarray, shape (3,)
         Demanded, allocated and missing generalized force [N, N, N·m].
-    setpoint_n : ndarray, shape (3,)
+    setpoint_ned : ndarray, shape (3,)
         Operator target [north_m, east_m, psi_rad].
     reference : Reference or None
         Reference model output (None in standby).
@@ -104,7 +104,7 @@ class StepOutput:
     tau_b: np.ndarray = field(default_factory=lambda: np.zeros(3))
     tau_achieved_b: np.ndarray = field(default_factory=lambda: np.zeros(3))
     shortfall_b: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    setpoint_n: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    setpoint_ned: np.ndarray = field(default_factory=lambda: np.zeros(3))
     reference: Reference | None = None
     estimate: WaveFilterOutput | None = None
     hub: HubOutput | None = None
@@ -188,7 +188,7 @@ class DpController:
             else (0.0, "hold_heading" if fb.position_loss == "dead_reckoning" else fb.position_loss)
         # MRAC supervision (_supervise): an estimate on a projection bound stops the adaptation
         self._mrac = self.controller.mass_adaptation
-        if self._mrac is not None and self._mrac.adapting and config.estimator.kind in WAVE_FILTER_KINDS:
+        if self._mrac is not None and self._mrac.adapting and self.estimator.force_model:
             self._mass_adaptive = MassAdaptiveEstimator(self.estimator, np.diag(vessel.mass_matrix))
             self.estimator = self._mass_adaptive
         self.thrusters = vessel.thrusters
@@ -204,7 +204,7 @@ class DpController:
         self._jerk_limit_n = np.array([horizontal, horizontal, float(jerk[2])])
         self._jerk_limit = self._jerk_limit_n.tolist()
         # the acceleration fed forward at the last step [m/s², m/s², rad/s²] (as floats: see _jerk_limited)
-        self._accel_ff_n: tuple[float, float, float] | None = None
+        self._accel_ff_ned: tuple[float, float, float] | None = None
         self._mass_sent: tuple[float, float, float] | None = None  # â₂ last given to the wave filter
         # CAPABILITY_FLOOR × the fleet's capability per DOF, as Python floats (constant; _capability_alarm)
         self._capability_floor = (CAPABILITY_FLOOR * self.allocator.capability_scale).tolist()
@@ -231,18 +231,19 @@ class DpController:
                               enabled=np.zeros(n, dtype=bool))
         self.mode = Mode.STANDBY
         self._requested_mode = Mode(config.initial_mode)
-        self.setpoint_n = np.zeros(3)
+        self.setpoint_ned = np.zeros(3)
         self._setpoint_given = False
         self._estimator_ready = False
         self._valid_since_t_s: float | None = None
         self._last_t_s: float | None = None
         self._tau_input_b = np.zeros(3)
-        self._y_n = np.zeros(3)  # the hub's fused measurement as the estimator takes it [m, m, rad] (see step)
+        self._y_ned = np.zeros(3)  # the hub's fused measurement as the estimator takes it [m, m, rad] (see step)
         # the drives' delivered thrust [N] and angle [rad], refilled each cycle (see _update_force_input)
         self._delivered_thrust_n = np.zeros(n)
         self._delivered_azimuth_rad = np.zeros(n)
         self._zero3 = np.zeros(3)
-        self._tracked_n = np.zeros(3)  # the pose the deviation alarms measure from (MRAC: y_M)
+        # the pose the controller made the vessel follow at this step when it is not η_d (MRAC: y_M), else None
+        self._tracked_ned: np.ndarray | None = None
         self._fallback_reason = ""
         self._engaged_once = False
         self._shortfall_since: float | None = None
@@ -286,9 +287,9 @@ class DpController:
             refusals: list[str] = []
             notes: list[str] = []
             if request.changes_pose:
-                current = self.setpoint_n if self._setpoint_given else self._estimate_pose()
+                current = self.setpoint_ned if self._setpoint_given else self._estimate_pose()
                 north, east, heading = request.resolve(float(current[0]), float(current[1]), float(current[2]))
-                self.setpoint_n[:] = (north, east, heading)
+                self.setpoint_ned[:] = (north, east, heading)
                 self._setpoint_given = True
             if request.mode is not None:
                 try:
@@ -338,7 +339,7 @@ class DpController:
             self.alarms.clear(t_s, "operator.request_refused")
             self._request_refused_t = None
         if requests:
-            north, east, heading = self.setpoint_n.tolist()
+            north, east, heading = self.setpoint_ned.tolist()
             where = (f"set-point {north:.2f} m N, {east:.2f} m E, heading {math.degrees(heading) % 360.0:.1f}°"
                      if self._setpoint_given or self.mode is not Mode.STANDBY else "no set-point yet")
             in_force = f"mode {self.mode.value}, {where}"
@@ -388,8 +389,8 @@ class DpController:
 
     def _estimate_pose(self) -> np.ndarray:
         if self._estimator_ready and self.out.estimate is not None:
-            return self.out.estimate.eta_hat_n
-        return self.out.hub.y_n if self.out.hub is not None else self._zero3  # type: ignore[return-value]
+            return self.out.estimate.eta_hat_ned
+        return self.out.hub.y_ned if self.out.hub is not None else self._zero3  # type: ignore[return-value]
 
     # ------------------------------------------------------------------ the step
     def step(self, t_s: float, measurements: Sequence[Measurement] = (),
@@ -429,34 +430,35 @@ class DpController:
             self.stage_us.update(hub=(t1 - t0) * 1e6, estimator=(t2 - t1) * 1e6, control=(t3 - t2) * 1e6,
                                  allocation=(t4 - t3) * 1e6, finish=(t5 - t4) * 1e6)
         out.mode = self.mode
-        out.setpoint_n[:] = self.setpoint_n
+        out.setpoint_ned[:] = self.setpoint_ned
         return out
 
     def _hub_stage(self, t_s: float, measurements: Sequence[Measurement]) -> HubOutput:
         """The sensor hub's tests and fusion of this period's measurements, against the estimator's prediction."""
         out = self.out
-        predicted = variance = velocity_n = None
+        predicted = variance = velocity_ned = None
         if self._estimator_ready:
-            predicted_n, variance_n = self.estimator.predicted_measurement()
+            predicted_ned, variance_ned = self.estimator.predicted_measurement()
             # as Python floats: the hub's scalar arithmetic on numpy scalars costs several times more (same values)
             # (an estimator returning an ndarray subclass or a sequence is converted the same way, more slowly)
-            predicted = predicted_n.tolist() if type(predicted_n) is np.ndarray else np.asarray(predicted_n).tolist()
-            variance = variance_n.tolist() if type(variance_n) is np.ndarray else np.asarray(variance_n).tolist()
+            predicted = (predicted_ned.tolist() if type(predicted_ned) is np.ndarray
+                         else np.asarray(predicted_ned).tolist())
+            variance = variance_ned.tolist() if type(variance_ned) is np.ndarray else np.asarray(variance_ned).tolist()
             estimate = out.estimate
             if estimate is not None:
                 # body_to_ned's arithmetic on Python floats, without building an array (the hub reads two)
-                psi = float(estimate.eta_hat_n[2])
+                psi = float(estimate.eta_hat_ned[2])
                 u, v, r = estimate.nu_hat_b.tolist()
                 c, s = math.cos(psi), math.sin(psi)
-                velocity_n = (c * u - s * v, s * u + c * v, r)
-        hub = self.hub.update(t_s, measurements, predicted, variance, velocity_n)
+                velocity_ned = (c * u - s * v, s * u + c * v, r)
+        hub = self.hub.update(t_s, measurements, predicted, variance, velocity_ned)
         out.hub = hub
         return hub
 
     def _estimator_stage(self, t_s: float, hub: HubOutput) -> None:
         """Start the estimator on the first fix of both kinds, re-initialise it on a hub reset, then step it."""
-        y = self._y_n  # refilled in place: every estimator and the reference model copy what they keep of it
-        y[:] = hub.y_n
+        y = self._y_ned  # refilled in place: every estimator and the reference model copy what they keep of it
+        y[:] = hub.y_ned
         if not self._estimator_ready:
             if hub.position_available and hub.heading_available:
                 self.estimator.reset(y)
@@ -466,7 +468,7 @@ class DpController:
             self.estimator.reset(y)  # keeps the sea-state knowledge (MMAE weights, RPEM ω)
             if self.mode is not Mode.STANDBY:
                 self.reference_model.reset(y)
-                self._accel_ff_n = None
+                self._accel_ff_ned = None
         if self._estimator_ready:
             self._update_force_input()
             self.out.estimate = self.estimator.step(y, self._tau_input_b, hub.measured)
@@ -477,22 +479,24 @@ class DpController:
         out = self.out
         tau = out.tau_b
         out.mrac = None
+        self._tracked_ned = None
         estimate = out.estimate
         if self.mode is Mode.STANDBY or estimate is None:
             out.reference = None
             tau[:] = 0.0
             return None
-        setpoint = self.setpoint_n
+        setpoint = self.setpoint_ned
         if self.mode is Mode.AUTO_HEADING:
-            target = np.array([estimate.eta_hat_n[0], estimate.eta_hat_n[1], setpoint[2]])
+            target = np.array([estimate.eta_hat_ned[0], estimate.eta_hat_ned[1], setpoint[2]])
         else:
             target = setpoint
         reference = self._jerk_limited(dt, self.reference_model.step(dt, target))
         out.reference = reference
         dofs = HEADING_ONLY if self.mode is Mode.AUTO_HEADING else ALL_DOFS
-        control = self.controller.step(dt, estimate.eta_hat_n, estimate.nu_hat_b, estimate.bias_hat_b,
+        control = self.controller.step(dt, estimate.eta_hat_ned, estimate.nu_hat_b, estimate.bias_hat_b,
                                        reference, dof_enabled=dofs)
         tau[:] = control.tau_b
+        self._tracked_ned = control.tracked_ned
         parameters = control.parameters
         if parameters is not None:
             # the controller builds a new dict every step: kept as it is (another mapping is copied)
@@ -519,7 +523,7 @@ class DpController:
                 meter.reset()
         else:
             meter.follow_peak(estimate.omega_hat_rad_s)
-            meter.update(self.out.tau_b, estimate.eta_hat_n)
+            meter.update(self.out.tau_b, estimate.eta_hat_ned)
 
     def _supervision_stage(self, t_s: float) -> None:
         """After the allocation: the controller told what was achieved, the capability and deviation alarms."""
@@ -528,16 +532,12 @@ class DpController:
             self.controller.notify_achieved(out.tau_achieved_b)
         self._capability_alarm(t_s)
         estimate = out.estimate
-        tracked = None if out.reference is None else out.reference.eta_d_n
-        mrac = out.mrac
-        if mrac is not None and tracked is not None:
-            # MRAC makes the vessel follow its reference model y_M (seed 003 eq. (15)), which trails η_d by
-            # design (8.7 m in the tanker's 20 m move): the vessel strays from y_M, not from η_d
-            tracked = self._tracked_n
-            tracked[0] = mrac["ref_model_north_m"]
-            tracked[1] = mrac["ref_model_east_m"]
-            tracked[2] = mrac["ref_model_heading_rad"]
-        self.deviation.update(t_s, self.mode.value, None if estimate is None else estimate.eta_hat_n, tracked)
+        tracked = None if out.reference is None else out.reference.eta_d_ned
+        if tracked is not None and self._tracked_ned is not None:
+            # a controller that makes the vessel follow its own pose (the MRAC's y_M trails η_d by design: 8.7 m
+            # in the tanker's 20 m move): the vessel strays from that pose, not from η_d
+            tracked = self._tracked_ned
+        self.deviation.update(t_s, self.mode.value, None if estimate is None else estimate.eta_hat_ned, tracked)
 
     def _jerk_limited(self, dt: float, reference: Reference) -> Reference:
         """The reference with its acceleration rate-limited to what the drives can follow.
@@ -549,10 +549,10 @@ class DpController:
         η̈_d at most at ``(Σ|B|·Ṫmax) / M`` per DOF; pose and velocity references are unchanged (the
         PD terms see the reference move smoothly anyway).
         """
-        a0, a1, a2 = reference.eta_ddot_d_n.tolist()
-        previous = self._accel_ff_n
+        a0, a1, a2 = reference.eta_ddot_d_ned.tolist()
+        previous = self._accel_ff_ned
         if previous is None:
-            self._accel_ff_n = (a0, a1, a2)
+            self._accel_ff_ned = (a0, a1, a2)
             return reference
         # per DOF on Python floats (the numpy clip/compare on 3-vectors cost ~3× more); p + min(max(d, −l), l)
         # is np.clip's arithmetic, so the values are the same
@@ -562,10 +562,10 @@ class DpController:
         p0 = q0 + min(max(a0 - q0, -l0), l0)
         p1 = q1 + min(max(a1 - q1, -l1), l1)
         p2 = q2 + min(max(a2 - q2, -l2), l2)
-        self._accel_ff_n = (p0, p1, p2)
+        self._accel_ff_ned = (p0, p1, p2)
         if p0 == a0 and p1 == a1 and p2 == a2:
             return reference
-        return Reference(reference.eta_d_n, reference.eta_dot_d_n, np.array((p0, p1, p2)))
+        return Reference(reference.eta_d_ned, reference.eta_dot_d_ned, np.array((p0, p1, p2)))
 
     def _update_force_input(self) -> None:
         """The force the estimator predicts the next period with: what the drives deliver *now* (this
@@ -686,17 +686,17 @@ class DpController:
         """Entering DP from standby: the reference starts at the estimate, moving as the vessel moves."""
         estimate = self.out.estimate
         assert estimate is not None
-        nu_n = body_to_ned(estimate.nu_hat_b, float(estimate.eta_hat_n[2]))
+        nu_ned = body_to_ned(estimate.nu_hat_b, float(estimate.eta_hat_ned[2]))
         limits = self.config.guidance
-        speed = math.hypot(nu_n[0], nu_n[1])
+        speed = math.hypot(nu_ned[0], nu_ned[1])
         if speed > limits.max_speed_mps:  # never start the reference faster than it may move
-            nu_n[:2] *= limits.max_speed_mps / speed
-        nu_n[2] = max(-limits.max_yaw_rate_radps, min(limits.max_yaw_rate_radps, nu_n[2]))
-        self.reference_model.reset(estimate.eta_hat_n, nu_n)
-        self._accel_ff_n = None
+            nu_ned[:2] *= limits.max_speed_mps / speed
+        nu_ned[2] = max(-limits.max_yaw_rate_radps, min(limits.max_yaw_rate_radps, nu_ned[2]))
+        self.reference_model.reset(estimate.eta_hat_ned, nu_ned)
+        self._accel_ff_ned = None
         self.controller.reset()
         if not self._setpoint_given:
-            self.setpoint_n[:] = estimate.eta_hat_n
+            self.setpoint_ned[:] = estimate.eta_hat_ned
 
     def _change_mode(self, t_s: float, wanted: Mode) -> None:
         """Switch to ``wanted``: the change recorded with its reason, a restored fall-back announced."""
@@ -872,7 +872,7 @@ class DpController:
         """Everything needed to resume without a jump (docs/installation.md, restarts); JSON-able."""
         state: dict[str, Any] = {
             "version": STATE_VERSION, "t_s": t_s, "config_sha256": self.config.config_hash,
-            "mode": self.mode.value, "setpoint_n": self.setpoint_n.tolist(), "setpoint_given": self._setpoint_given,
+            "mode": self.mode.value, "setpoint_n": self.setpoint_ned.tolist(), "setpoint_given": self._setpoint_given,
             "datum": None if self.hub.datum is None else [self.hub.datum.lat0_deg, self.hub.datum.lon0_deg],
             "allocator": self.allocator.state_dict(), "monitor": self.monitor.state_dict(),
             "thrust_n": self.out.thrust_n.tolist(), "azimuth_rad": self.out.azimuth_rad.tolist(),
@@ -881,8 +881,8 @@ class DpController:
             state["estimator"] = self.estimator.state_dict()
         if self.mode is not Mode.STANDBY:
             state["reference"] = self.reference_model.state_dict()
-            if self._accel_ff_n is not None:
-                state["accel_ff_n"] = list(self._accel_ff_n)
+            if self._accel_ff_ned is not None:
+                state["accel_ff_n"] = list(self._accel_ff_ned)
         state["controller"] = self.controller.state_dict()
         consequence = None if self.consequence is None else self.consequence.state_dict(t_s)
         if consequence is not None:
@@ -899,7 +899,7 @@ class DpController:
         self.monitor.load_state_dict(state.get("monitor", {}))
         self.out.thrust_n[:] = state["thrust_n"]
         self.out.azimuth_rad[:] = state["azimuth_rad"]
-        self.setpoint_n[:] = state["setpoint_n"]
+        self.setpoint_ned[:] = state["setpoint_n"]
         self._setpoint_given = bool(state.get("setpoint_given", True))
         self._mass_sent = None  # the restored filter's mass ratio is not what was last sent
         if "estimator" in state:
@@ -913,10 +913,10 @@ class DpController:
             self.reference_model.load_state_dict(state["reference"])
             accel = state.get("accel_ff_n")
             if accel is None:
-                self._accel_ff_n = None
+                self._accel_ff_ned = None
             else:
                 a0, a1, a2 = np.array(accel, dtype=float).reshape(3).tolist()
-                self._accel_ff_n = (a0, a1, a2)
+                self._accel_ff_ned = (a0, a1, a2)
             self.mode = mode
             self._requested_mode = mode
             self._engaged_once = True

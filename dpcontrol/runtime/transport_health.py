@@ -110,10 +110,10 @@ class TransportHealth:
             return 0.0, 0
         good = bad = 0
         # (called every control cycle: one pass over the ring, no attribute look-up per slot)
-        for index, good_n, bad_n in zip(self._slot, self._good, self._bad, strict=True):
+        for index, good_count, bad_count in zip(self._slot, self._good, self._bad, strict=True):
             if oldest <= index <= newest:
-                good += good_n
-                bad += bad_n
+                good += good_count
+                bad += bad_count
         total = good + bad
         return (bad / total if total else 0.0), bad
 

@@ -778,8 +778,8 @@ class Daemon:
         kind = self.config.estimator.kind
         if estimate is not None:
             pub["estimate"].put(schemas.estimate_payload(
-                t_s=t_s, seq=seq, estimator=kind, eta_n=estimate.eta_hat_n, nu_b=estimate.nu_hat_b,
-                bias=estimate.bias_hat_b, bias_frame="body", eta_wf_n=estimate.eta_wf_hat_n,
+                t_s=t_s, seq=seq, estimator=kind, eta_ned=estimate.eta_hat_ned, nu_b=estimate.nu_hat_b,
+                bias=estimate.bias_hat_b, bias_frame="body", eta_wf_ned=estimate.eta_wf_hat_ned,
                 covariance_diag=estimate.covariance_diag))
             if estimate.weights is not None:
                 pub["mmae"].put(schemas.mmae_payload(t_s=t_s, seq=seq, omegas_rad_s=estimate.omegas_rad_s,
@@ -790,8 +790,8 @@ class Daemon:
         reference = out.reference
         adaptation = None if mrac is None else self.controller.mass_adaptation  # (the MRAC, stepped this cycle)
         pub["control"].put(schemas.control_payload(
-            t_s=t_s, seq=seq, controller=self.config.control.kind, tau_b=out.tau_b, setpoint_n=out.setpoint_n,
-            reference_n=None if reference is None else reference.eta_d_n, tau_achieved_b=out.tau_achieved_b,
+            t_s=t_s, seq=seq, controller=self.config.control.kind, tau_b=out.tau_b, setpoint_ned=out.setpoint_ned,
+            reference_ned=None if reference is None else reference.eta_d_ned, tau_achieved_b=out.tau_achieved_b,
             shortfall_b=out.shortfall_b,
             mrac_mass=None if mrac is None else [mrac.get("mass_surge_kg"), mrac.get("mass_sway_kg"),
                                                  mrac.get("inertia_yaw_kgm2")],
@@ -822,19 +822,19 @@ class Daemon:
         estimate = out.estimate
         if estimate is not None:
             recorder.record("estimate", t_s, {
-                "t_s": t_s, "eta_n": estimate.eta_hat_n.tolist(), "nu_b": estimate.nu_hat_b.tolist(),
-                "bias_b": estimate.bias_hat_b.tolist(), "eta_wf_n": estimate.eta_wf_hat_n.tolist(),
+                "t_s": t_s, "eta_n": estimate.eta_hat_ned.tolist(), "nu_b": estimate.nu_hat_b.tolist(),
+                "bias_b": estimate.bias_hat_b.tolist(), "eta_wf_n": estimate.eta_wf_hat_ned.tolist(),
                 "covariance_diag": estimate.covariance_diag.tolist(), "measured": list(estimate.measured)})
             if estimate.weights is not None:
                 recorder.record("mmae", t_s, {"t_s": t_s, "weights": estimate.weights.tolist(),
                                               "omegas_rad_s": list(estimate.omegas_rad_s),
                                               "omega_hat_rad_s": estimate.omega_hat_rad_s})
         if out.reference is not None:
-            recorder.record("reference", t_s, {"t_s": t_s, "eta_d_n": out.reference.eta_d_n.tolist(),
-                                               "eta_dot_d_n": out.reference.eta_dot_d_n.tolist()})
+            recorder.record("reference", t_s, {"t_s": t_s, "eta_d_n": out.reference.eta_d_ned.tolist(),
+                                               "eta_dot_d_n": out.reference.eta_dot_d_ned.tolist()})
         wave_band = None if self.controller.wave_band is None else self.controller.wave_band.summary()
         recorder.record("control", t_s, {"t_s": t_s, "tau_b": out.tau_b.tolist(), "mrac": out.mrac,
-                                         "setpoint_n": out.setpoint_n.tolist(), "wave_band": wave_band})
+                                         "setpoint_n": out.setpoint_ned.tolist(), "wave_band": wave_band})
         recorder.record("allocation", t_s, {"t_s": t_s, "tau_achieved_b": out.tau_achieved_b.tolist(),
                                             "shortfall_b": out.shortfall_b.tolist()})
         recorder.record("command", t_s, {"t_s": t_s, "cycle": seq, "mode": out.mode.value, "names": self._names,

@@ -393,12 +393,12 @@ def _gst(data: list[str], strict: bool) -> tuple[SensorMessage, ...]:
     orientation_deg = _number(f[4], "GST orientation")
     if orientation_deg is not None and abs(orientation_deg) > 360.0:
         raise _FieldError("out_of_range", f"GST orientation {f[4]!r} is not an angle in degrees")
-    sigma_n = _number(f[5], "GST sigma latitude", signed=False)
-    sigma_e = _number(f[6], "GST sigma longitude", signed=False)
-    sigma_d = _number(f[7], "GST sigma altitude", signed=False)
-    if (sigma_n is None or sigma_e is None) and (major is None or minor is None or orientation_deg is None):
+    sigma_north = _number(f[5], "GST sigma latitude", signed=False)
+    sigma_east = _number(f[6], "GST sigma longitude", signed=False)
+    sigma_down = _number(f[7], "GST sigma altitude", signed=False)
+    if (sigma_north is None or sigma_east is None) and (major is None or minor is None or orientation_deg is None):
         raise _FieldError("no_data", "GST has neither the latitude/longitude sigmas nor the error ellipse")
-    return (PositionErrorStats(sigma_n, sigma_e, sigma_d, rms, utc, major, minor,
+    return (PositionErrorStats(sigma_north, sigma_east, sigma_down, rms, utc, major, minor,
                                None if orientation_deg is None else ssa(math.radians(orientation_deg))),)
 
 

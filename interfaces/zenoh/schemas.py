@@ -45,10 +45,10 @@ Schemas (version 1; ``?`` = may be ``null``)
 ``dpcontrol.estimate/1``::
 
     estimator: str  (mmae | kf | rpem | kalman_bucy | raw ...)
-    pose_n?: {north_m?, east_m?, heading_rad?}          LF pose, NED
+    pose_ned?: {north_m?, east_m?, heading_rad?}          LF pose, NED
     velocity_b?: {surge_mps?, sway_mps?, yaw_rate_radps?} LF velocity, body
     bias?: {frame: "ned" | "body", x_n?, y_n?, n_nm?}   slowly varying bias force (seed 002 b)
-    wave_n?: {north_m?, east_m?, heading_rad?}           WF motion estimate
+    wave_ned?: {north_m?, east_m?, heading_rad?}           WF motion estimate
     covariance_diag?: [float?]                            diagonal of P (estimator state order)
 
 ``dpcontrol.mmae/1``::
@@ -951,21 +951,21 @@ def feedback_payload(*, t_s: float, seq: int, names: Sequence[str], thrust_n: An
                                   for n, f, a, r in zip(names, thrust, azimuth, flags, strict=True)]})
 
 
-def estimate_payload(*, t_s: float, seq: int, estimator: str, eta_n: Any, nu_b: Any, bias: Any = None,
-                     bias_frame: str = "ned", eta_wf_n: Any = None, covariance_diag: Any = None) -> bytes:
+def estimate_payload(*, t_s: float, seq: int, estimator: str, eta_ned: Any, nu_b: Any, bias: Any = None,
+                     bias_frame: str = "ned", eta_wf_ned: Any = None, covariance_diag: Any = None) -> bytes:
     """Encode the state estimate.
 
     Parameters
     ----------
     estimator : str
         Estimator kind (``mmae``, ``kf``, ``rpem``, ``kalman_bucy``, ``raw`` ...).
-    eta_n : array_like, shape (3,) or None
+    eta_ned : array_like, shape (3,) or None
         LF pose ``[north_m, east_m, psi_rad]`` (NED); heading wrapped with ssa.
     nu_b : array_like, shape (3,) or None
         LF body velocity ``[u_mps, v_mps, r_radps]``.
     bias : array_like, shape (3,), optional
         Bias force ``b`` [N, N, N·m] (seed 002), in ``bias_frame`` (``ned`` or ``body``).
-    eta_wf_n : array_like, shape (3,), optional
+    eta_wf_ned : array_like, shape (3,), optional
         WF motion estimate ``[north_m, east_m, psi_rad]``.
     covariance_diag : array_like, shape (n,), optional
         Diagonal of the error covariance, estimator state order.
@@ -978,10 +978,10 @@ def estimate_payload(*, t_s: float, seq: int, estimator: str, eta_n: Any, nu_b: 
         bias_dict = {"frame": bias_frame, "x_n": x, "y_n": y, "n_nm": n}
     return _encode({
         "schema": ESTIMATE.id, "t_s": float(t_s), "seq": int(seq), "estimator": estimator,
-        "pose_n": _pose_dict(eta_n),
+        "pose_n": _pose_dict(eta_ned),
         "velocity_b": _vec3(nu_b, ("surge_mps", "sway_mps", "yaw_rate_radps")),
         "bias": bias_dict,
-        "wave_n": _pose_dict(eta_wf_n),
+        "wave_n": _pose_dict(eta_wf_ned),
         "covariance_diag": None if covariance_diag is None else _floats(covariance_diag),
     })
 
@@ -1005,8 +1005,8 @@ def mmae_payload(*, t_s: float, seq: int, omegas_rad_s: Any, weights: Any, omega
                     "sea_state": sea_states.classify(omega_hat)})
 
 
-def control_payload(*, t_s: float, seq: int, controller: str, tau_b: Any, setpoint_n: Any = None,  # noqa: PLR0913 - one keyword-only argument per field of the payload
-                    reference_n: Any = None, reference_nu_b: Any = None, tau_achieved_b: Any = None,
+def control_payload(*, t_s: float, seq: int, controller: str, tau_b: Any, setpoint_ned: Any = None,  # noqa: PLR0913 - one keyword-only argument per field of the payload
+                    reference_ned: Any = None, reference_nu_b: Any = None, tau_achieved_b: Any = None,
                     shortfall_b: Any = None, mrac_mass: Any = None, mrac_damping: Any = None,
                     mrac_nominal: Any = None, mrac_state: Sequence[str] | None = None) -> bytes:
     """Encode the controller state.
@@ -1017,7 +1017,7 @@ def control_payload(*, t_s: float, seq: int, controller: str, tau_b: Any, setpoi
         ``pid``, ``mrac`` ...
     tau_b : array_like, shape (3,) or None
         Commanded generalised force ``[X_n, Y_n, N_nm]`` (body).
-    setpoint_n, reference_n : array_like, shape (3,), optional
+    setpoint_ned, reference_ned : array_like, shape (3,), optional
         Operator setpoint and reference-model output ``[north_m, east_m, psi_rad]`` (NED).
     reference_nu_b : array_like, shape (3,), optional
         Reference velocity ``[u_mps, v_mps, r_radps]`` (body).
@@ -1036,8 +1036,8 @@ def control_payload(*, t_s: float, seq: int, controller: str, tau_b: Any, setpoi
         omitted).
     """
     reference = None
-    if reference_n is not None or reference_nu_b is not None:
-        reference = _pose_dict(reference_n) or {"north_m": None, "east_m": None, "heading_rad": None}
+    if reference_ned is not None or reference_nu_b is not None:
+        reference = _pose_dict(reference_ned) or {"north_m": None, "east_m": None, "heading_rad": None}
         reference.update(_vec3(reference_nu_b, ("surge_mps", "sway_mps", "yaw_rate_radps"))
                          or {"surge_mps": None, "sway_mps": None, "yaw_rate_radps": None})
     if shortfall_b is None and tau_b is not None and tau_achieved_b is not None:
@@ -1054,7 +1054,7 @@ def control_payload(*, t_s: float, seq: int, controller: str, tau_b: Any, setpoi
         if mrac_state is not None:
             mrac["state"] = _per_dof(mrac_state)
     return _encode({"schema": CONTROL.id, "t_s": float(t_s), "seq": int(seq), "controller": controller,
-                    "setpoint": _pose_dict(setpoint_n), "reference": reference,
+                    "setpoint": _pose_dict(setpoint_ned), "reference": reference,
                     "tau_b": _vec3(tau_b, _FORCE), "tau_achieved_b": _vec3(tau_achieved_b, _FORCE),
                     "shortfall_b": _vec3(shortfall_b, _FORCE), "mrac": mrac})
 

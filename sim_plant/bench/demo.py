@@ -519,16 +519,16 @@ def write_report(run_dir: Path, wiring: dict[str, Any], *, daemon_code: int | No
     if truth:
         t = truth["t_s"]
         setpoints = sorted(scenario.get("setpoints") or [], key=lambda s: s["t_s"])
-        ref_n = np.full_like(t, np.nan)
-        ref_e = np.full_like(t, np.nan)
+        ref_north = np.full_like(t, np.nan)
+        ref_east = np.full_like(t, np.nan)
         for sp in setpoints:
             mask = t >= sp["t_s"]
             if sp.get("north_m") is not None:
-                ref_n[mask] = sp["north_m"]
-                ref_e[mask] = sp["east_m"]
+                ref_north[mask] = sp["north_m"]
+                ref_east[mask] = sp["east_m"]
         engaged_t = next((float(m["t_s"]) for m in modes if m.get("to") == "auto_position"), None)
         summary["dp_engaged"] = engaged_t is not None
-        error = np.hypot(truth["north_m"] - ref_n, truth["east_m"] - ref_e)
+        error = np.hypot(truth["north_m"] - ref_north, truth["east_m"] - ref_east)
         half_s = float(t[0] + 0.5 * (t[-1] - t[0]))
         settled = t >= half_s
         if np.any(np.isfinite(error[settled])):

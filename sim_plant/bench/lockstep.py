@@ -827,23 +827,23 @@ class LockstepSimulation:
         nan = math.nan
         # (the truth fields a row keeps, without building the whole PlantTruth: see Plant.record_values)
         (t_s, north, east, heading_lf, north_total, east_total, heading_total, surge, sway, yaw_rate, tau_x, tau_y,
-         tau_n, omega_peak, motion_peak, mass_factor, surge_mass) = self.plant.record_values()
+         tau_yaw, omega_peak, motion_peak, mass_factor, surge_mass) = self.plant.record_values()
         values = [t_s, north, east, heading_lf, north_total, east_total, heading_total, surge, sway, yaw_rate]
         hub = out.hub
         position = hub is not None and hub.position_available
         heading = hub is not None and hub.heading_available
-        values += (hub.y_n[0] if position else nan, hub.y_n[1] if position else nan,  # type: ignore[union-attr]
-                   hub.y_n[2] if heading else nan)  # type: ignore[union-attr]
+        values += (hub.y_ned[0] if position else nan, hub.y_ned[1] if position else nan,  # type: ignore[union-attr]
+                   hub.y_ned[2] if heading else nan)  # type: ignore[union-attr]
         estimate = out.estimate
         if estimate is not None:
-            values += estimate.eta_hat_n.tolist()
+            values += estimate.eta_hat_ned.tolist()
             values += estimate.nu_hat_b.tolist()
         else:
             values += _NAN6
         reference = out.reference
-        values += reference.eta_d_n.tolist() if reference is not None else _NAN3
+        values += reference.eta_d_ned.tolist() if reference is not None else _NAN3
         values += out.tau_b.tolist()
-        values += (tau_x, tau_y, tau_n)
+        values += (tau_x, tau_y, tau_yaw)
         if n_models:
             if estimate is not None and estimate.weights is not None:
                 values += estimate.weights.tolist()

@@ -155,10 +155,10 @@ def summarise(result: RunResult) -> dict[str, Any]:
         k0 = int(engaged[0])
         summary["engaged_at_s"] = _round(float(t[k0]), 3)
         sl = slice(k0, None)
-        e_n = col("north_m")[sl] - col("ref_north_m")[sl]
-        e_e = col("east_m")[sl] - col("ref_east_m")[sl]
+        error_north = col("north_m")[sl] - col("ref_north_m")[sl]
+        error_east = col("east_m")[sl] - col("ref_east_m")[sl]
         e_h = ssa_array(col("heading_rad")[sl] - col("ref_heading_rad")[sl])
-        horizontal = np.hypot(e_n, e_e)
+        horizontal = np.hypot(error_north, error_east)
         if np.any(mode[sl] == 2):  # position errors only mean something in DP (auto_position)
             metrics["position_error_rms_m"] = _round(_rms(horizontal[mode[sl] == 2]))
             metrics["position_error_max_m"] = _round(_max_abs(horizontal[mode[sl] == 2]))

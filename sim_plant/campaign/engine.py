@@ -58,19 +58,19 @@ def settled_metrics(result: RunResult, settle_s: float) -> dict[str, float | Non
     north = d[:, c.index("north_m")]
     east = d[:, c.index("east_m")]
     heading = d[:, c.index("heading_rad")]
-    sp_n = np.full(t.size, np.nan)
-    sp_e = np.full(t.size, np.nan)
+    setpoint_north = np.full(t.size, np.nan)
+    setpoint_east = np.full(t.size, np.nan)
     sp_h = np.full(t.size, np.nan)
     points = result.scenario.setpoints
     for i, point in enumerate(points):
         end = points[i + 1].t_s if i + 1 < len(points) else math.inf
         sel = (t >= point.t_s - 1e-9) & (t < end - 1e-9)
         if point.north_m is not None:
-            sp_n[sel], sp_e[sel] = point.north_m, point.east_m
+            setpoint_north[sel], setpoint_east[sel] = point.north_m, point.east_m
         if point.heading_rad is not None:
             sp_h[sel] = point.heading_rad
     after = t >= settle_s - 1e-9
-    position = np.hypot(north - sp_n, east - sp_e)[after]
+    position = np.hypot(north - setpoint_north, east - setpoint_east)[after]
     head = np.degrees(np.abs(ssa_array(heading - sp_h)))[after]
     out: dict[str, float | None] = {}
     for name, values in (("position_error", position), ("heading_error", head)):

@@ -136,7 +136,7 @@ def drift_direction_factors(beta_rad: float, hull: HullDimensions, bow_factor: f
     Returns
     -------
     (float, float, float)
-        (l_x, l_y, l_n) so that τ_drift = F'·(l_x, l_y, l_n), F' = ½ρg|A|² [N/m].
+        (l_x, l_y, l_ψ) so that τ_drift = F'·(l_x, l_y, l_ψ), F' = ½ρg|A|² [N/m].
     """
     cb = math.cos(beta_rad)
     sb = math.sin(beta_rad)

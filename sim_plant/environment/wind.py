@@ -62,8 +62,8 @@ class WindModel:
         self.mean_speed_mps = speed_mps
         self.direction_from_rad = direction_from_rad
         self.coefficients = coefficients
-        self._to_n = -math.cos(direction_from_rad)  # unit vector the air moves toward (NED)
-        self._to_e = -math.sin(direction_from_rad)
+        self._to_north = -math.cos(direction_from_rad)  # unit vector the air moves toward (NED)
+        self._to_east = -math.sin(direction_from_rad)
         self.gust: SpectralProcess | None = None
         if gusts and speed_mps > 0.0:
             edges_hz = np.geomspace(1.0 / 2000.0, 0.5, 65)
@@ -95,8 +95,8 @@ class WindModel:
         speed = self.speed_at(t_s)
         c = math.cos(heading_rad)
         s = math.sin(heading_rad)
-        wn = speed * self._to_n
-        we = speed * self._to_e
+        wn = speed * self._to_north
+        we = speed * self._to_east
         # air velocity relative to the vessel in body axes (air minus vessel: −(u_rw, v_rw) of
         # seed 002 eqs. (21)–(22))
         ua = c * wn + s * we - u_mps

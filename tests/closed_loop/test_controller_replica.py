@@ -114,7 +114,7 @@ def test_a_replica_that_misses_the_link_changes_disagrees_once_and_stays_in_alar
 def test_a_corrupted_primary_state_raises_the_alarm_at_the_next_deadline() -> None:
     def corrupt(t_s: float, primary: Any, replica: ControllerReplica) -> None:
         if abs(t_s - 20.0) < 1e-9:  # the set-point changed behind the controller's back
-            primary.setpoint_n[0] += 2.0
+            primary.setpoint_ned[0] += 2.0
 
     run = _run("cs2-seed000", 25.0, before_step=corrupt)
     counters = run.replica.counters

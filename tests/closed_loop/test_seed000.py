@@ -123,11 +123,11 @@ def test_follows_the_10_m_step_and_keeps_station(run: RunResult) -> None:
     t = _col(run, "t_s")
     engaged = t >= 20.0
     north, east = _col(run, "north_m"), _col(run, "east_m")
-    ref_n, ref_e = _col(run, "ref_north_m"), _col(run, "ref_east_m")
-    tracking = np.hypot(north - ref_n, east - ref_e)[engaged]
+    ref_north, ref_east = _col(run, "ref_north_m"), _col(run, "ref_east_m")
+    tracking = np.hypot(north - ref_north, east - ref_east)[engaged]
     assert float(np.max(tracking)) <= TRACKING_BOUND_M, f"tracking error up to {np.max(tracking):.3f} m"
     arrived = t >= STEP_ARRIVED_S
-    assert np.all(np.abs(ref_n[arrived] - 10.0) < 1e-3) and np.all(np.abs(ref_e[arrived]) < 1e-3)
+    assert np.all(np.abs(ref_north[arrived] - 10.0) < 1e-3) and np.all(np.abs(ref_east[arrived]) < 1e-3)
     station = np.hypot(north[arrived] - 10.0, east[arrived])
     assert float(np.max(station)) <= STATION_BOUND_M, f"station-keeping error up to {np.max(station):.3f} m"
     heading_error = np.degrees(np.abs(ssa_array(_col(run, "heading_rad") - _col(run, "ref_heading_rad"))))

@@ -130,18 +130,18 @@ class _RecordingFilter:
 
     def __init__(self) -> None:
         self.taus: list[np.ndarray] = []
-        self.out = WaveFilterOutput(eta_hat_n=np.zeros(3), nu_hat_b=np.zeros(3), bias_hat_b=np.array([1e5, 2e5, 3e7]),
-                                    eta_wf_hat_n=np.zeros(3), covariance_diag=np.zeros(15), innovation=np.zeros(3),
+        self.out = WaveFilterOutput(eta_hat_ned=np.zeros(3), nu_hat_b=np.zeros(3), bias_hat_b=np.array([1e5, 2e5, 3e7]),
+                                    eta_wf_hat_ned=np.zeros(3), covariance_diag=np.zeros(15), innovation=np.zeros(3),
                                     weights=None, omegas_rad_s=(0.55,), omega_hat_rad_s=0.55)
         self.state = {"kind": "kf", "x": [0.0]}
 
-    def reset(self, y_n: np.ndarray) -> None:
+    def reset(self, y_ned: np.ndarray) -> None:
         pass
 
     def predicted_measurement(self) -> tuple[np.ndarray, np.ndarray]:
         return np.zeros(3), np.ones(3)
 
-    def step(self, y_n, tau_b, measured=(True, True, True)) -> WaveFilterOutput:
+    def step(self, y_ned, tau_b, measured=(True, True, True)) -> WaveFilterOutput:
         self.taus.append(np.array(tau_b))
         return self.out
 

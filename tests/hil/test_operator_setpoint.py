@@ -67,7 +67,7 @@ def test_a_set_point_is_applied_and_a_move_resolves_against_it(controller: tuple
     code, out, err = _ask(endpoint, "--north", "5", "--east", "-3", "--heading", "90", capsys=capsys)
     assert code == 0, err
     assert out == f"{VESSEL}: applied: mode standby, set-point 5.00 m N, -3.00 m E, heading 90.0°\n"
-    np.testing.assert_allclose(daemon.controller.setpoint_n, [5.0, -3.0, np.pi / 2])
+    np.testing.assert_allclose(daemon.controller.setpoint_ned, [5.0, -3.0, np.pi / 2])
 
     # 2 m ahead along heading 90° is 2 m east; a 45° turn to starboard; as JSON
     code, out, err = _ask(endpoint, "--move-surge", "2", "--turn", "45", "--json", capsys=capsys)

@@ -95,7 +95,7 @@ def test_the_shore_reads_but_never_commands_the_bridge_commands(vessel: tuple[Da
         assert status.sink.wait_count(1, 15.0)
         assert isinstance(shore.query_config(10.0), dict)
         # the shore's request never reaches the daemon: it is not even told that anybody subscribes
-        before = daemon.controller.setpoint_n.copy()
+        before = daemon.controller.setpoint_ned.copy()
         setpoints_heard = daemon._setpoints.stats.received
         code, _out, err = _ask(endpoint, tls, "shore", "--north", "40", "--east", "0", "--timeout", "3",
                                capsys=capsys)
@@ -115,7 +115,7 @@ def test_the_shore_reads_but_never_commands_the_bridge_commands(vessel: tuple[Da
             fb.put(schemas.feedback_payload(t_s=1.0, seq=fb.next_seq(), names=names, thrust_n=np.ones(len(names)),
                                             azimuth_rad=np.zeros(len(names)), ready=[True] * len(names)))
         time.sleep(1.5)  # fifteen cycles: anything let through would have been taken
-        np.testing.assert_array_equal(daemon.controller.setpoint_n, before)
+        np.testing.assert_array_equal(daemon.controller.setpoint_ned, before)
         assert daemon._setpoints.stats.received == setpoints_heard
         assert daemon._foreign_commands.count == 0 and daemon._feedback_slot.count == 0
         assert "controller.conflict" not in {a.code for a in daemon.alarms.active()}
@@ -125,7 +125,7 @@ def test_the_shore_reads_but_never_commands_the_bridge_commands(vessel: tuple[Da
         assert code == 0, err
         answer = json.loads(out)
         assert (answer["outcome"], answer["role"], answer["identity"]) == ("applied", "console", "bridge")
-        np.testing.assert_allclose(daemon.controller.setpoint_n[:2], [5.0, -3.0])
+        np.testing.assert_allclose(daemon.controller.setpoint_ned[:2], [5.0, -3.0])
         last = daemon.controller.last_request
         assert last is not None and (last.role, last.identity) == ("console", "bridge")
         # the shore sees that answer in the status it may read

@@ -89,9 +89,9 @@ def test_feedback_round_trip_turns_non_finite_into_none(thrust: list[float], rea
 
 
 def test_estimate_round_trip_with_missing_values() -> None:
-    payload = sc.estimate_payload(t_s=1.0, seq=2, estimator="mmae", eta_n=[10.0, -4.0, 7.0],
+    payload = sc.estimate_payload(t_s=1.0, seq=2, estimator="mmae", eta_ned=[10.0, -4.0, 7.0],
                                   nu_b=[0.1, math.nan, 0.01], bias=[1e3, 2e3, -3e4], bias_frame="body",
-                                  eta_wf_n=None, covariance_diag=[1.0, math.inf, 0.5])
+                                  eta_wf_ned=None, covariance_diag=[1.0, math.inf, 0.5])
     assert b"NaN" not in payload and b"Infinity" not in payload
     msg = sc.parse_message("estimate", payload)
     assert isinstance(msg, dict)
@@ -106,13 +106,13 @@ def test_control_payload_computes_shortfall_and_nulls_mrac() -> None:
     tau = np.array([1e4, -2e4, 3e5])
     achieved = np.array([9e3, -2e4, 1e5])
     msg = sc.parse_message("control", sc.control_payload(t_s=0.0, seq=0, controller="pid", tau_b=tau,
-                                                         tau_achieved_b=achieved, setpoint_n=[1, 2, 0.5]))
+                                                         tau_achieved_b=achieved, setpoint_ned=[1, 2, 0.5]))
     assert isinstance(msg, dict)
     short = msg["shortfall_b"]
     np.testing.assert_allclose([short["x_n"], short["y_n"], short["n_nm"]], tau - achieved)
     assert msg["mrac"] is None and msg["reference"] is None
     with_mrac = sc.parse_message("control", sc.control_payload(
-        t_s=0.0, seq=1, controller="mrac", tau_b=tau, reference_n=[0, 0, 0.1], reference_nu_b=[0.2, 0, 0],
+        t_s=0.0, seq=1, controller="mrac", tau_b=tau, reference_ned=[0, 0, 0.1], reference_nu_b=[0.2, 0, 0],
         mrac_mass=[6e6, 7e6, 4e9], mrac_damping=None))
     assert isinstance(with_mrac, dict)
     assert with_mrac["mrac"]["mass"]["yaw_kgm2"] == 4e9
@@ -438,7 +438,7 @@ def test_unknown_topic_and_role_are_refused() -> None:
 def test_fast_encoder_and_stdlib_fallback_write_the_same_json() -> None:
     rng = np.random.default_rng(7)
     payloads = [
-        sc.estimate_payload(t_s=1e9 + 0.1, seq=2**40, estimator="kf", eta_n=rng.normal(size=3) * 1e5,
+        sc.estimate_payload(t_s=1e9 + 0.1, seq=2**40, estimator="kf", eta_ned=rng.normal(size=3) * 1e5,
                             nu_b=rng.normal(size=3) * 1e-7, bias=[1e-300, -0.0, 5e15], covariance_diag=[1e-20, 3.0]),
         sc.mmae_payload(t_s=0.0, seq=0, omegas_rad_s=np.linspace(0.3, 1.35, 8), weights=np.full(8, 0.125),
                         omega_hat_rad_s=None),

@@ -72,8 +72,8 @@ def test_feed_snapshot_trail_and_acknowledgement_over_zenoh() -> None:
         assert estimate.wait_matched(20.0) and status.wait_matched(20.0)
 
         def publish(north: float, alarm_since: float) -> None:
-            estimate.put(sc.estimate_payload(t_s=1.0, seq=1, estimator="mmae", eta_n=[north, 2.0, 0.1],
-                                             nu_b=[0.0, 0.0, 0.0], bias=[0.0, 0.0, 0.0], eta_wf_n=[0.0, 0.0, 0.0],
+            estimate.put(sc.estimate_payload(t_s=1.0, seq=1, estimator="mmae", eta_ned=[north, 2.0, 0.1],
+                                             nu_b=[0.0, 0.0, 0.0], bias=[0.0, 0.0, 0.0], eta_wf_ned=[0.0, 0.0, 0.0],
                                              covariance_diag=[1.0]))
             status.put(sc.status_payload(t_s=10.0, seq=1, mode="auto_position",
                                          alarms=[sc.Alarm("gnss1.frozen", "alarm", "frozen", alarm_since, True)]))

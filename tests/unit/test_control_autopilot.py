@@ -38,7 +38,7 @@ def simulate(autopilot: HeadingAutopilot, target_deg: float, duration_s: float, 
         target = np.array([0.0, 0.0, math.radians(target_deg) if k * dt >= step_at_s else 0.0])
         if guidance:
             ref = model.step(dt, target)
-            psi_d, r_d, rdot_d = ref.eta_d_n[2], ref.eta_dot_d_n[2], ref.eta_ddot_d_n[2]
+            psi_d, r_d, rdot_d = ref.eta_d_ned[2], ref.eta_dot_d_ned[2], ref.eta_ddot_d_ned[2]
         else:
             psi_d, r_d, rdot_d = target[2], 0.0, 0.0
         out = autopilot.step(dt, psi, r, psi_d, r_d_radps=r_d, r_dot_d_radps2=rdot_d, tau_wind_n_nm=wind_ff)

@@ -139,19 +139,20 @@ class PlainPid:
         self.integral = np.zeros(3)
         self.command = np.zeros(3)
         self.achieved: np.ndarray | None = None
+        self.duty = np.zeros(3)
 
     def step(self, dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray | None, reference: Reference,
              mask: tuple[bool, bool, bool]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         cfg = self.config
         c, s = math.cos(eta[2]), math.sin(eta[2])
         rot_t = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
-        e_b = rot_t @ (eta - reference.eta_d_n)
-        e_b[2] = ssa(eta[2] - reference.eta_d_n[2])
-        nu_d = rot_t @ reference.eta_dot_d_n
+        e_b = rot_t @ (eta - reference.eta_d_ned)
+        e_b[2] = ssa(eta[2] - reference.eta_d_ned[2])
+        nu_d = rot_t @ reference.eta_dot_d_ned
         e_dot = nu - nu_d
         tau = -(cfg.kp @ e_b) - cfg.kd @ e_dot
         if cfg.mass_matrix is not None:
-            tau += cfg.mass_matrix @ (rot_t @ reference.eta_ddot_d_n)
+            tau += cfg.mass_matrix @ (rot_t @ reference.eta_ddot_d_ned)
         if cfg.damping_matrix is not None:
             tau += cfg.damping_matrix @ nu_d
         if cfg.integral_action == "integrator":
@@ -159,8 +160,13 @@ class PlainPid:
             if self.achieved is not None:
                 shortfall = self.achieved - self.command
                 for i in range(3):
+                    side = 0.0
                     if abs(shortfall[i]) > TOLERANCE * (1.0 + abs(self.command[i])):
-                        if increment[i] * self.command[i] > 0.0:
+                        side = 1.0 if shortfall[i] > 0.0 else -1.0
+                    alpha = 1.0 - math.exp(-dt * self.tracking[i]) if self.tracking[i] > 0.0 else 1.0
+                    self.duty[i] += alpha * (side - self.duty[i])
+                    if abs(self.duty[i]) > 0.5 and side * self.duty[i] > 0.0:
+                        if increment[i] * self.duty[i] < 0.0:
                             increment[i] = 0.0
                         increment[i] += dt * self.tracking[i] * shortfall[i]
             self.integral += increment
@@ -173,6 +179,7 @@ class PlainPid:
             if not mask[i]:
                 tau[i] = 0.0
                 self.integral[i] = 0.0
+                self.duty[i] = 0.0
         self.command = tau.copy()
         return tau, e_b, e_dot
 
@@ -185,33 +192,36 @@ def plain_reference_step(model: ReferenceModelConfig, state: dict[str, list[floa
     rate = max(max(2.0 * z * w, w) for z, w in zip(zeta, omega, strict=True))
     substeps = max(1, math.ceil(dt * rate / 0.2))
     h = dt / substeps
-    (rf_n, rf_e, rf_p), (x_n, x_e, x_p), (v_n, v_e, v_p) = state["rf"], state["x"], state["v"]
-    a_n = a_e = a_p = 0.0
+    rf_north, rf_east, rf_psi = state["rf"]
+    x_north, x_east, x_psi = state["x"]
+    v_north, v_east, v_psi = state["v"]
+    a_north = a_east = a_psi = 0.0
     r_psi = ssa(float(r[2]))
     for _ in range(substeps):
-        rf_n += h * omega[0] * (r[0] - rf_n)
-        rf_e += h * omega[1] * (r[1] - rf_e)
-        rf_p = ssa(rf_p + h * omega[2] * ssa(r_psi - rf_p))
-        e_n, e_e, e_p = rf_n - x_n, rf_e - x_e, ssa(rf_p - x_p)
-        vc_n, vc_e = omega[0] / (2.0 * zeta[0]) * e_n, omega[1] / (2.0 * zeta[1]) * e_e
-        speed = math.hypot(vc_n, vc_e)
-        limit = min(model.max_speed_mps, math.sqrt(model.max_accel_mps2 * math.hypot(e_n, e_e)))
+        rf_north += h * omega[0] * (r[0] - rf_north)
+        rf_east += h * omega[1] * (r[1] - rf_east)
+        rf_psi = ssa(rf_psi + h * omega[2] * ssa(r_psi - rf_psi))
+        e_north, e_east, e_psi = rf_north - x_north, rf_east - x_east, ssa(rf_psi - x_psi)
+        vc_north, vc_east = omega[0] / (2.0 * zeta[0]) * e_north, omega[1] / (2.0 * zeta[1]) * e_east
+        speed = math.hypot(vc_north, vc_east)
+        limit = min(model.max_speed_mps, math.sqrt(model.max_accel_mps2 * math.hypot(e_north, e_east)))
         if speed > limit:
-            vc_n, vc_e = vc_n * (limit / speed), vc_e * (limit / speed)
-        vc_p = omega[2] / (2.0 * zeta[2]) * e_p
-        limit = min(model.max_yaw_rate_radps, math.sqrt(model.max_yaw_accel_radps2 * abs(e_p)))
-        if abs(vc_p) > limit:
-            vc_p = math.copysign(limit, vc_p)
-        a_n, a_e = 2.0 * zeta[0] * omega[0] * (vc_n - v_n), 2.0 * zeta[1] * omega[1] * (vc_e - v_e)
-        accel = math.hypot(a_n, a_e)
+            vc_north, vc_east = vc_north * (limit / speed), vc_east * (limit / speed)
+        vc_psi = omega[2] / (2.0 * zeta[2]) * e_psi
+        limit = min(model.max_yaw_rate_radps, math.sqrt(model.max_yaw_accel_radps2 * abs(e_psi)))
+        if abs(vc_psi) > limit:
+            vc_psi = math.copysign(limit, vc_psi)
+        a_north, a_east = 2.0 * zeta[0] * omega[0] * (vc_north - v_north), 2.0 * zeta[1] * omega[1] * (vc_east - v_east)
+        accel = math.hypot(a_north, a_east)
         if accel > model.max_accel_mps2:
-            a_n, a_e = a_n * (model.max_accel_mps2 / accel), a_e * (model.max_accel_mps2 / accel)
-        a_p = 2.0 * zeta[2] * omega[2] * (vc_p - v_p)
-        if abs(a_p) > model.max_yaw_accel_radps2:
-            a_p = math.copysign(model.max_yaw_accel_radps2, a_p)
-        v_n, v_e, v_p = v_n + h * a_n, v_e + h * a_e, v_p + h * a_p
-        x_n, x_e, x_p = x_n + h * v_n, x_e + h * v_e, ssa(x_p + h * v_p)
-    state.update(rf=[rf_n, rf_e, rf_p], x=[x_n, x_e, x_p], v=[v_n, v_e, v_p], a=[a_n, a_e, a_p])
+            a_north, a_east = a_north * (model.max_accel_mps2 / accel), a_east * (model.max_accel_mps2 / accel)
+        a_psi = 2.0 * zeta[2] * omega[2] * (vc_psi - v_psi)
+        if abs(a_psi) > model.max_yaw_accel_radps2:
+            a_psi = math.copysign(model.max_yaw_accel_radps2, a_psi)
+        v_north, v_east, v_psi = v_north + h * a_north, v_east + h * a_east, v_psi + h * a_psi
+        x_north, x_east, x_psi = x_north + h * v_north, x_east + h * v_east, ssa(x_psi + h * v_psi)
+    state.update(rf=[rf_north, rf_east, rf_psi], x=[x_north, x_east, x_psi], v=[v_north, v_east, v_psi],
+                 a=[a_north, a_east, a_psi])
 
 
 def _inputs(rng: np.random.Generator, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, Reference]:
@@ -261,7 +271,7 @@ def test_mrac_step_matches_the_python_floats_it_replaced(variant: str) -> None:
         plain.command, plain.achieved = state["last_command_b"], state["last_achieved_b"]
         out = controller.step(dt, eta, nu, bias, reference, dof_enabled=mask)
         tau, e_b, ed_b, params = plain.step(dt, eta.tolist(), nu.tolist(), bias.tolist(),
-                                            reference.eta_d_n.tolist(), mask)
+                                            reference.eta_d_ned.tolist(), mask)
         np.testing.assert_allclose(out.tau_b, tau, rtol=1e-12, atol=1e-9)
         np.testing.assert_allclose(out.error_b, e_b, rtol=1e-12, atol=1e-12)
         np.testing.assert_allclose(out.velocity_error_b, ed_b, rtol=1e-12, atol=1e-14)
@@ -288,21 +298,21 @@ def test_mrac_takes_any_vectors_and_raises_the_same_errors() -> None:
     frozen = bias.copy()
     frozen.setflags(write=False)
     strided = np.repeat(nu, 2)[::2]
-    second = b.step(0.1, eta.tolist(), strided, frozen, Reference(reference.eta_d_n.tolist(), reference.eta_dot_d_n,
-                                                                   reference.eta_ddot_d_n), dof_enabled=[1, 1, 1])
+    second = b.step(0.1, eta.tolist(), strided, frozen, Reference(reference.eta_d_ned.tolist(), reference.eta_dot_d_ned,
+                                                                   reference.eta_ddot_d_ned), dof_enabled=[1, 1, 1])
     np.testing.assert_array_equal(first.tau_b, second.tau_b)
     assert first.parameters == second.parameters
     before = a.state_dict()
-    for kwargs, match in (({"eta_hat_n": [np.nan, 0.0, 0.0]}, "eta_hat_n"), ({"nu_hat_b": [1.0, 2.0]}, "nu_hat_b"),
+    for kwargs, match in (({"eta_hat_ned": [np.nan, 0.0, 0.0]}, "eta_hat_ned"), ({"nu_hat_b": [1.0, 2.0]}, "nu_hat_b"),
                           ({"bias_hat_b": [0.0, np.inf, 0.0]}, "bias_hat_b"),
                           ({"tau_wind_ff_b": np.array([0.0, 0.0, np.nan])}, "tau_wind_ff_b"),
-                          ({"reference": Reference.hold(np.array([0.0, np.nan, 0.0]))}, "reference.eta_d_n"),
+                          ({"reference": Reference.hold(np.array([0.0, np.nan, 0.0]))}, "reference.eta_d_ned"),
                           ({"dof_enabled": (True, False)}, "dof_enabled")):
-        args = {"eta_hat_n": eta, "nu_hat_b": nu, "bias_hat_b": bias, "reference": reference, **kwargs}
+        args = {"eta_hat_ned": eta, "nu_hat_b": nu, "bias_hat_b": bias, "reference": reference, **kwargs}
         wind = args.pop("tau_wind_ff_b", None)
         dofs = args.pop("dof_enabled", ALL_DOFS)
         with pytest.raises(ValueError, match=match):
-            a.step(0.1, args["eta_hat_n"], args["nu_hat_b"], args["bias_hat_b"], args["reference"],
+            a.step(0.1, args["eta_hat_ned"], args["nu_hat_b"], args["bias_hat_b"], args["reference"],
                    dof_enabled=dofs, tau_wind_ff_b=wind)
     with pytest.raises(ValueError, match="dt_s"):
         a.step(0.0, eta, nu, bias, reference)
@@ -328,13 +338,15 @@ def test_mrac_state_round_trip_keeps_the_mass_floats() -> None:
 
 
 # ---------------------------------------------------------------------- PID
-@pytest.mark.parametrize("variant", ["integrator", "bias_feedforward", "limited", "no_feedforward"])
+@pytest.mark.parametrize("variant", ["integrator", "bias_feedforward", "limited", "no_feedforward", "fast_tracking"])
 def test_pid_step_matches_the_numpy_code_it_replaced(variant: str) -> None:
     vessel = CYBERSHIP2 if variant == "bias_feedforward" else SUPPLY
     config = default_pid_config(vessel, "bias_feedforward" if variant == "bias_feedforward" else "integrator",
                                 reference_feedforward=variant != "no_feedforward")
     if variant == "limited":
         config = dataclasses.replace(config, integral_limit=(2e4, 2e4, 5e5), antiwindup_time_constant_s=(8.0, 8.0, 5.0))
+    elif variant == "fast_tracking":  # T_t of a few steps: the saturation duty crosses 1/2 in the saturated spells
+        config = dataclasses.replace(config, antiwindup_time_constant_s=(0.3, 0.3, 0.3))
     controller = PidController(config)
     plain = PlainPid(controller)
     rng = np.random.default_rng(4)
@@ -342,6 +354,7 @@ def test_pid_step_matches_the_numpy_code_it_replaced(variant: str) -> None:
         state = controller.state_dict()  # the same state for both (compared per step)
         plain.integral, plain.command = np.array(state["integral_force_b"]), np.array(state["last_command_b"])
         plain.achieved = None if state["last_achieved_b"] is None else np.array(state["last_achieved_b"])
+        plain.duty = np.array(state["saturation_duty"])
         eta, nu, bias, reference = _inputs(rng, k)
         if vessel is CYBERSHIP2:
             bias = bias * 1e-4
@@ -364,11 +377,11 @@ def test_pid_takes_any_vectors_and_raises_the_same_errors() -> None:
     eta, nu, bias, reference = _inputs(rng, 0)
     a, b = PidController(config), PidController(config)
     first = a.step(0.1, eta, nu, bias, reference)
-    second = b.step(0.1, eta.tolist(), tuple(nu), bias, Reference(list(reference.eta_d_n), reference.eta_dot_d_n,
-                                                                  reference.eta_ddot_d_n), dof_enabled=[1, 1, 1])
+    second = b.step(0.1, eta.tolist(), tuple(nu), bias, Reference(list(reference.eta_d_ned), reference.eta_dot_d_ned,
+                                                                  reference.eta_ddot_d_ned), dof_enabled=[1, 1, 1])
     np.testing.assert_array_equal(first.tau_b, second.tau_b)
     before = a.state_dict()
-    for args, match in (((0.1, [np.nan, 0, 0], nu, None), "eta_hat_n"), ((0.1, eta, [1.0, 2.0], None), "nu_hat_b"),
+    for args, match in (((0.1, [np.nan, 0, 0], nu, None), "eta_hat_ned"), ((0.1, eta, [1.0, 2.0], None), "nu_hat_b"),
                         ((0.1, eta, nu, np.array([np.inf, 0.0, 0.0])), "bias_hat_b"), ((-1.0, eta, nu, None), "dt_s")):
         with pytest.raises(ValueError, match=match):
             a.step(*args, reference)
@@ -397,12 +410,12 @@ def test_reference_model_kernel_matches_the_python_loop() -> None:
         dt = [0.1, 0.05, 1.0, 3.0][k % 4]  # several sub-step counts
         reference = model.step(dt, setpoint)
         plain_reference_step(config, state, dt, setpoint)
-        np.testing.assert_allclose(reference.eta_d_n, state["x"], rtol=1e-13, atol=1e-12)
-        np.testing.assert_allclose(reference.eta_dot_d_n, state["v"], rtol=1e-12, atol=1e-14)
-        np.testing.assert_allclose(reference.eta_ddot_d_n, state["a"], rtol=1e-12, atol=1e-14)
+        np.testing.assert_allclose(reference.eta_d_ned, state["x"], rtol=1e-13, atol=1e-12)
+        np.testing.assert_allclose(reference.eta_dot_d_ned, state["v"], rtol=1e-12, atol=1e-14)
+        np.testing.assert_allclose(reference.eta_ddot_d_ned, state["a"], rtol=1e-12, atol=1e-14)
     current = model.current()
-    current.eta_d_n[0] += 1.0  # new arrays: the model's state is not changed through them
-    assert model.current().eta_d_n[0] == current.eta_d_n[0] - 1.0
+    current.eta_d_ned[0] += 1.0  # new arrays: the model's state is not changed through them
+    assert model.current().eta_d_ned[0] == current.eta_d_ned[0] - 1.0
     # any sequence as the set-point, as before
-    np.testing.assert_array_equal(ReferenceModel(config).step(0.1, [1, 2, 3]).eta_d_n,
-                                  ReferenceModel(config).step(0.1, np.array([1.0, 2.0, 3.0])).eta_d_n)
+    np.testing.assert_array_equal(ReferenceModel(config).step(0.1, [1, 2, 3]).eta_d_ned,
+                                  ReferenceModel(config).step(0.1, np.array([1.0, 2.0, 3.0])).eta_d_ned)

@@ -289,7 +289,7 @@ def test_reference_model_is_bumpless_heading_safe_and_restartable() -> None:
     target = np.array([10.0, 20.0, math.radians(-179.0)])
     for _ in range(3000):
         out = a.step(0.1, eta, np.zeros(3), None, Reference.hold(target))
-    y_m, _ = a.reference_model_state_n
+    y_m, _ = a.reference_model_state_ned
     assert abs(y_m[2]) > math.radians(178.0)
     assert -math.pi < y_m[2] <= math.pi
     assert abs(out.error_b[2]) < math.radians(2.5)
@@ -361,18 +361,18 @@ def test_a_guided_mrac_tracks_the_guidance_reference_itself() -> None:
         out = controller.step(0.1, eta, nu, None, reference)
     assert out.parameters is not None
     y_m = [out.parameters[name] for name in REFERENCE_MODEL_NAMES]
-    np.testing.assert_allclose(y_m, reference.eta_d_n, rtol=0, atol=1e-12)  # the pose the operator sees
+    np.testing.assert_allclose(y_m, reference.eta_d_ned, rtol=0, atol=1e-12)  # the pose the operator sees
     psi = eta[2]
     rot = np.array([[math.cos(psi), math.sin(psi), 0.0], [-math.sin(psi), math.cos(psi), 0.0], [0.0, 0.0, 1.0]])
-    e = rot @ (eta - reference.eta_d_n)
-    ed = nu - rot @ reference.eta_dot_d_n
-    assert np.abs(reference.eta_ddot_d_n).max() > 0.0
+    e = rot @ (eta - reference.eta_d_ned)
+    ed = nu - rot @ reference.eta_dot_d_ned
+    assert np.abs(reference.eta_ddot_d_ned).max() > 0.0
     np.testing.assert_allclose(out.error_b, e, rtol=1e-9, atol=1e-12)
     # with the known coupling of the nominal model: the body-frame acceleration of the reference
     # ν̇_M = Rᵀη̈_d − S(r_d)ν_M, M = diag(â₂) + M_off, the Coriolis force C(ν_M)ν_M and the off-diagonal damping
-    nu_m = rot @ reference.eta_dot_d_n
-    r_m = reference.eta_dot_d_n[2]
-    accel = rot @ reference.eta_ddot_d_n + np.array([r_m * nu_m[1], -r_m * nu_m[0], 0.0])
+    nu_m = rot @ reference.eta_dot_d_ned
+    r_m = reference.eta_dot_d_ned[2]
+    accel = rot @ reference.eta_ddot_d_ned + np.array([r_m * nu_m[1], -r_m * nu_m[0], 0.0])
     z = accel - beta1 * ed - beta0 * e
     mass = config.mass_matrix
     p = mass @ nu_m
@@ -381,7 +381,7 @@ def test_a_guided_mrac_tracks_the_guidance_reference_itself() -> None:
     # seed 003's diagonal law (coupling: []): u = â₂(Rᵀη̈_d − β₁ė − β₀e) + â₁ẏ per DOF
     diagonal = MracController(dataclasses.replace(config, coupling=()))
     out = diagonal.step(0.1, eta, nu, None, reference)
-    np.testing.assert_allclose(out.tau_b, m * (rot @ reference.eta_ddot_d_n - beta1 * ed - beta0 * e) + c * nu,
+    np.testing.assert_allclose(out.tau_b, m * (rot @ reference.eta_ddot_d_ned - beta1 * ed - beta0 * e) + c * nu,
                                rtol=1e-9)
 
 

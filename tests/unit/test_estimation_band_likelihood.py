@@ -242,7 +242,8 @@ def _jonswap_data(seconds: float, omega_peak: float, seed: int, wf_std: float = 
     M, D = np.diag(CYBERSHIP2.mass_matrix), np.diag(CYBERSHIP2.damping_matrix)
     wn = np.array([0.1, 0.1, 0.15])
     lf = simulate_vessel(CYBERSHIP2.mass_matrix, CYBERSHIP2.damping_matrix, DT, steps, rng, kp=M * wn**2,
-                         kd=2 * M * wn - D, bias_n=np.array([0.1, -0.2, 0.01]), force_std=np.array([0.05, 0.05, 0.005]),
+                         kd=2 * M * wn - D, bias_ned=np.array([0.1, -0.2, 0.01]),
+                         force_std=np.array([0.05, 0.05, 0.005]),
                          bias_drift_std=np.array([0.005, 0.005, 0.0005]), substeps=2)
     wf = jonswap_motion(np.arange(steps) * DT, omega_peak, np.array([wf_std, 0.5 * wf_std, 1e-3]), rng)
     return measure(lf["eta"], wf, np.array([0.01, 0.01, 1e-4]), rng), lf

@@ -88,7 +88,7 @@ def _jonswap_run(omega_peak: float, amplitude_scale: float, seed: int, duration_
     M, D = np.diag(CYBERSHIP2.mass_matrix), np.diag(CYBERSHIP2.damping_matrix)
     wn = np.array([0.3, 0.3, 0.4])
     lf = simulate_vessel(CYBERSHIP2.mass_matrix, CYBERSHIP2.damping_matrix, DT_CS2, steps, rng, kp=M * wn**2,
-                         kd=2 * M * wn - D, bias_n=np.array([0.3, -0.2, 0.02]),
+                         kd=2 * M * wn - D, bias_ned=np.array([0.3, -0.2, 0.02]),
                          force_std=np.sqrt(Q_SEED000[3:6] / DT_CS2), bias_drift_std=0.3 * np.sqrt(Q_SEED000[6:9]),
                          substeps=2)
     wf_std = amplitude_scale * np.sqrt(Q_SEED000[0:3] / (4.0 * ZETA * omega_peak))
@@ -144,7 +144,7 @@ def test_sea_state_changes_are_tracked_seed_001() -> None:
     M, D = np.diag(SUPPLY.mass_matrix), np.diag(SUPPLY.damping_matrix)
     wn = np.array([0.05, 0.05, 0.06])
     lf = simulate_vessel(SUPPLY.mass_matrix, SUPPLY.damping_matrix, DT_SUPPLY, steps, rng, kp=M * wn**2,
-                         kd=2 * M * wn - D, bias_n=np.array([3e4, -2e4, 1e6]),
+                         kd=2 * M * wn - D, bias_ned=np.array([3e4, -2e4, 1e6]),
                          force_std=np.sqrt(config.force_intensity() / DT_SUPPLY),
                          bias_drift_std=np.array([100.0, 100.0, 1e4]), substeps=2)
     # WF motion with a flat RAO: 0.6 m/m in surge/sway, 0.5°/m in yaw; std = RAO·Hs/4.

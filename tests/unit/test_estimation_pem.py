@@ -86,8 +86,8 @@ def test_pem_filter_reidentifies_on_schedule_and_the_lf_estimate_does_not_jump()
         out = wave_filter.step(y[k], np.zeros(3))
         if wave_filter.identifications != count:
             identified_at.append(k)
-            jumps.append(np.abs(out.eta_hat_n[:2] - previous).max())
-        previous = out.eta_hat_n[:2].copy()
+            jumps.append(np.abs(out.eta_hat_ned[:2] - previous).max())
+        previous = out.eta_hat_ned[:2].copy()
     # first after pem_first_s, then every pem_interval_s
     assert identified_at == [2999, 5999, 8999]
     assert abs(wave_filter.omega_hat / peak - 1.0) <= 0.1
@@ -113,7 +113,7 @@ def test_pem_state_round_trip_and_bad_state() -> None:
     assert b.omega_hat == a.omega_hat and b.zeta_hat == a.zeta_hat
     out_a = a.step(motion[-1], np.zeros(3))
     out_b = b.step(motion[-1], np.zeros(3))
-    np.testing.assert_allclose(out_a.eta_hat_n, out_b.eta_hat_n, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(out_a.eta_hat_ned, out_b.eta_hat_ned, rtol=0, atol=1e-9)
     with pytest.raises(ValueError, match="pem"):
         b.load_state_dict({**state, "zeta_hat": 2.0})
     assert b.zeta_hat == a.zeta_hat

@@ -25,7 +25,7 @@ def _tanker_sea(omega_peak: float, seed: int, dt: float = 1.0, duration_s: float
     M, D = np.diag(V.mass_matrix), np.diag(V.damping_matrix)
     wn = np.array([0.03, 0.03, 0.04])
     lf = simulate_vessel(V.mass_matrix, V.damping_matrix, dt, steps, rng, kp=M * wn**2,
-                         kd=np.maximum(2 * M * wn - D, 0.0), bias_n=np.array([1e5, -5e4, 2e6]),
+                         kd=np.maximum(2 * M * wn - D, 0.0), bias_ned=np.array([1e5, -5e4, 2e6]),
                          force_std=np.array([2e4, 4e4, 2e6]), substeps=2)
     wf = jonswap_motion(np.arange(steps) * dt, omega_peak, np.array([0.5, 0.8, math.radians(0.3)]), rng)
     y = measure(lf["eta"], wf, np.array([0.3, 0.3, math.radians(0.1)]), rng)

@@ -41,7 +41,7 @@ def _scenario(steps: int, seed: int = 0, setpoints: np.ndarray | None = None, wf
     M, D = np.diag(SUPPLY.mass_matrix), np.diag(SUPPLY.damping_matrix)
     wn = np.array([0.05, 0.05, 0.06])
     lf = simulate_vessel(SUPPLY.mass_matrix, SUPPLY.damping_matrix, DT, steps, rng, kp=M * wn**2, kd=2 * M * wn - D,
-                         bias_n=np.array([2e4, -1e4, 5e5]), force_std=np.array([5e3, 5e3, 2e5]), setpoints=setpoints,
+                         bias_ned=np.array([2e4, -1e4, 5e5]), force_std=np.array([5e3, 5e3, 2e5]), setpoints=setpoints,
                          substeps=2)
     wf = jonswap_motion(np.arange(steps) * DT, 0.7, wf_scale * np.array([0.5, 0.5, math.radians(0.5)]), rng)
     y = measure(lf["eta"], wf, np.array([0.1, 0.1, math.radians(0.1)]), rng)
@@ -62,14 +62,14 @@ def test_every_kind_follows_the_protocol(name: str) -> None:
     f.reset(y[0])
     out = f.step(y[0], lf["tau"][0])
     n = 9 if name == "raw" else 15
-    assert out.eta_hat_n.shape == (3,) and out.covariance_diag.shape == (n,)
+    assert out.eta_hat_ned.shape == (3,) and out.covariance_diag.shape == (n,)
     for k in range(1, 600):
         y_pred, var = f.predicted_measurement()
         assert y_pred.shape == (3,) and var.shape == (3,) and np.all(var > 0.0) and -math.pi < y_pred[2] <= math.pi
         out = f.step(y[k], lf["tau"][k])
     assert out.measured == (True, True, True)
     assert np.all(np.isfinite(out.covariance_diag)) and np.all(out.covariance_diag > 0.0)
-    assert -math.pi < out.eta_hat_n[2] <= math.pi
+    assert -math.pi < out.eta_hat_ned[2] <= math.pi
     if name == "mmae":
         assert out.weights.shape == (3,) and math.isclose(out.weights.sum(), 1.0)
         assert min(out.omegas_rad_s) <= out.omega_hat_rad_s <= max(out.omegas_rad_s)
@@ -78,8 +78,8 @@ def test_every_kind_follows_the_protocol(name: str) -> None:
     elif name == "rpem":
         assert 0.2 <= out.omega_hat_rad_s <= 2.0 and out.weights is None
     else:
-        assert out.omega_hat_rad_s is None and not np.any(out.eta_wf_hat_n)
-    assert out.eta_wf_hat is out.eta_wf_hat_n
+        assert out.omega_hat_rad_s is None and not np.any(out.eta_wf_hat_ned)
+    assert out.eta_wf_hat is out.eta_wf_hat_ned
 
 
 def test_innovation_is_measurement_minus_predicted_measurement() -> None:
@@ -106,8 +106,8 @@ def test_wave_filter_removes_the_wf_motion_and_raw_passes_it() -> None:
         wf = np.zeros((3000, 3))
         for k in range(3000):
             out = f.step(y[k], lf["tau"][k])
-            eta[k] = out.eta_hat_n
-            wf[k] = out.eta_wf_hat_n
+            eta[k] = out.eta_hat_ned
+            wf[k] = out.eta_wf_hat_ned
         errors[name] = np.sqrt(np.mean((eta[500:, :2] - lf["eta"][500:, :2]) ** 2))
         wf_errors[name] = np.sqrt(np.mean((y[500:, :2] - lf["eta"][500:, :2] - wf[500:, :2]) ** 2))
     measured_wf = np.sqrt(np.mean((y[500:, :2] - lf["eta"][500:, :2]) ** 2))
@@ -131,8 +131,8 @@ def test_time_varying_kf_converges_to_the_steady_state_kf() -> None:
         varying.reset(yy[0])
         diff = np.zeros(2000)
         for k in range(2000):
-            a = steady.step(yy[k], lf["tau"][k]).eta_hat_n.copy()
-            b = varying.step(yy[k], lf["tau"][k]).eta_hat_n
+            a = steady.step(yy[k], lf["tau"][k]).eta_hat_ned.copy()
+            b = varying.step(yy[k], lf["tau"][k]).eta_hat_ned
             diff[k] = np.abs(a[:2] - b[:2]).max()
         if fixed_heading:
             assert diff[-1] < 1e-6
@@ -163,7 +163,7 @@ def test_dead_reckoning_and_partial_measurements(name: str) -> None:
             assert out.measured == (False, False, True)
         else:
             out = f.step(y[k], lf["tau"][k])
-        errors.append(np.abs(out.eta_hat_n[:2] - lf["eta"][k, :2]).max())
+        errors.append(np.abs(out.eta_hat_ned[:2] - lf["eta"][k, :2]).max())
     errors = np.array(errors)
     t = np.arange(2400) * DT
     normal = errors[(t > 100) & (t < 200)].max()
@@ -176,7 +176,7 @@ def test_non_finite_measurements_only_drop_their_channel() -> None:
     y, lf = _scenario(50, seed=5)
     f.reset(y[0])
     out = f.step(np.array([math.nan, y[1, 1], y[1, 2]]), lf["tau"][1])
-    assert out.measured == (False, False, True) and np.all(np.isfinite(out.eta_hat_n))
+    assert out.measured == (False, False, True) and np.all(np.isfinite(out.eta_hat_ned))
     out = f.step(np.array([y[2, 0], y[2, 1], math.inf]), lf["tau"][2])
     assert out.measured == (True, True, False)
     out = f.step(np.array(["bad", 1.0, 2.0], dtype=object), lf["tau"][3])
@@ -214,7 +214,7 @@ def test_state_dict_round_trip_is_bumpless(name: str) -> None:
     for k in range(200, 400):
         out_a = a.step(y[k], lf["tau"][k])
         out_b = b.step(y[k], lf["tau"][k])
-        assert np.array_equal(out_a.eta_hat_n, out_b.eta_hat_n)
+        assert np.array_equal(out_a.eta_hat_ned, out_b.eta_hat_ned)
         assert np.array_equal(out_a.covariance_diag, out_b.covariance_diag)
         assert out_a.omega_hat_rad_s == out_b.omega_hat_rad_s
 
@@ -260,7 +260,7 @@ def test_reset_reinitialises_the_pose_but_keeps_the_sea_state(name: str) -> None
     assert learnt[1] != (0.7 if name == "mmae" else 0.6)          # something was learnt
     f.reset(np.array([50.0, 60.0, 1.0]))
     out = f.step(None, np.zeros(3))
-    assert np.allclose(out.eta_hat_n, [50.0, 60.0, 1.0], atol=0.5)  # pose re-initialised …
+    assert np.allclose(out.eta_hat_ned, [50.0, 60.0, 1.0], atol=0.5)  # pose re-initialised …
     if name == "mmae":
         assert np.array_equal(out.weights, learnt[0])              # … weights kept
     assert out.omega_hat_rad_s == learnt[1]                         # … and the peak-frequency estimate
@@ -272,7 +272,7 @@ def test_same_inputs_give_the_same_outputs() -> None:
     for _ in range(2):
         f = make_wave_filter(_config("mmae"))
         f.reset(y[0])
-        runs.append(np.array([f.step(y[k], lf["tau"][k]).eta_hat_n.copy() for k in range(300)]))
+        runs.append(np.array([f.step(y[k], lf["tau"][k]).eta_hat_ned.copy() for k in range(300)]))
     assert np.array_equal(runs[0], runs[1])
 
 
@@ -294,8 +294,8 @@ def test_turn_of_90_degrees_one_kilometre_from_the_datum(wf_frame: str) -> None:
         e = np.zeros((steps, 3))
         for k in range(steps):
             out = f.step(yy[k], truth["tau"][k])
-            e[k, :2] = out.eta_hat_n[:2] - truth["eta"][k, :2]
-            e[k, 2] = ssa(out.eta_hat_n[2] - truth["eta"][k, 2])
+            e[k, :2] = out.eta_hat_ned[:2] - truth["eta"][k, :2]
+            e[k, 2] = ssa(out.eta_hat_ned[2] - truth["eta"][k, 2])
         err[label] = e
     assert abs(lf["eta"][-1, 2] - math.pi / 2) < 0.05                       # the vessel did turn
     yardstick = np.abs(err["datum"][500:, :2]).max()
@@ -315,9 +315,9 @@ def test_heading_near_pi_and_full_turns_are_wrap_safe(name: str) -> None:
             psi_true += 2.0 * 2.0 * math.pi / 2000.0 * (1.0 if k < 3000 else 0.0)   # 2 turns in 400 s
         psi_meas = ssa(psi_true + rng.normal(0.0, math.radians(0.1)))
         out = f.step(np.array([rng.normal(0, 0.1), rng.normal(0, 0.1), psi_meas]), np.zeros(3))
-        assert -math.pi < out.eta_hat_n[2] <= math.pi
+        assert -math.pi < out.eta_hat_ned[2] <= math.pi
         if k > 50:
-            assert abs(ssa(out.eta_hat_n[2] - psi_true)) < math.radians(5.0), (k, out.eta_hat_n[2], psi_true)
+            assert abs(ssa(out.eta_hat_ned[2] - psi_true)) < math.radians(5.0), (k, out.eta_hat_ned[2], psi_true)
     if name == "mmae":
         assert np.all(np.abs(f.x[:, f._heading]) < 2.0 * math.pi)               # states were shifted by turns
 
@@ -346,7 +346,7 @@ def test_frame_rotation_keeps_the_ned_estimate(name: str, psi0: float, dpsi: flo
         # after step() the state is the one-step prediction: blend it (bank) and convert to NED
         x = f.p @ f.x if isinstance(f, BankWaveFilter) else f.filter.x
         f._write_pose(x)
-        return f.output.eta_hat_n.copy(), f.output.eta_wf_hat_n.copy()
+        return f.output.eta_hat_ned.copy(), f.output.eta_wf_hat_ned.copy()
 
     before = ned_of_current_state()
     f.set_frame_heading(ssa(psi0 + dpsi))
@@ -365,7 +365,7 @@ def test_mmae_model_poses_are_the_single_filters() -> None:
     for k in range(300):
         bank.step(y[k], lf["tau"][k])
         out = single.step(y[k], lf["tau"][k])
-        assert np.allclose(bank.model_lf_poses_n()[1], out.eta_hat_n, atol=1e-9)
+        assert np.allclose(bank.model_lf_poses_ned()[1], out.eta_hat_ned, atol=1e-9)
 
 
 # ---------------------------------------------------------------------------------------------

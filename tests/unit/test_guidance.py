@@ -33,7 +33,7 @@ def run(model: ReferenceModel, setpoint, duration_s: float, dt_s: float = 1.0) -
     target = np.asarray(setpoint, dtype=float)
     for k in range(steps):
         ref = model.step(dt_s, target)
-        eta[k], vel[k], acc[k] = ref.eta_d_n, ref.eta_dot_d_n, ref.eta_ddot_d_n
+        eta[k], vel[k], acc[k] = ref.eta_d_ned, ref.eta_dot_d_ned, ref.eta_ddot_d_ned
     return eta, vel, acc
 
 
@@ -104,9 +104,9 @@ def test_reset_is_bumpless_for_a_moving_vessel() -> None:
     nu0 = np.array([0.3, -0.1, 0.002])  # NED velocity
     model.reset(eta0, nu0)
     ref = model.step(0.1, eta0)  # hold here
-    np.testing.assert_allclose(ref.eta_d_n, eta0 + 0.1 * nu0, atol=1e-4)
-    np.testing.assert_allclose(ref.eta_dot_d_n, nu0, atol=1e-4)
-    assert np.all(np.abs(ref.eta_ddot_d_n) < 1e-3)
+    np.testing.assert_allclose(ref.eta_d_ned, eta0 + 0.1 * nu0, atol=1e-4)
+    np.testing.assert_allclose(ref.eta_dot_d_ned, nu0, atol=1e-4)
+    assert np.all(np.abs(ref.eta_ddot_d_ned) < 1e-3)
     eta, vel, _ = run(model, eta0, 3000.0)
     np.testing.assert_allclose(vel[-1], 0.0, atol=1e-6)  # it stops and comes back smoothly
     np.testing.assert_allclose(eta[-1], eta0, atol=1e-3)
@@ -116,8 +116,8 @@ def test_first_step_without_reset_starts_at_the_setpoint() -> None:
     model = ReferenceModel(TANKER_LIKE)
     assert not model.initialised
     ref = model.step(0.1, np.array([5.0, 6.0, 7.0]))
-    np.testing.assert_allclose(ref.eta_d_n, [5.0, 6.0, 7.0 - 2 * math.pi], atol=1e-12)
-    np.testing.assert_allclose(ref.eta_dot_d_n, 0.0)
+    np.testing.assert_allclose(ref.eta_d_ned, [5.0, 6.0, 7.0 - 2 * math.pi], atol=1e-12)
+    np.testing.assert_allclose(ref.eta_dot_d_ned, 0.0)
 
 
 def test_state_dict_round_trip_is_json_and_exact() -> None:
@@ -130,8 +130,8 @@ def test_state_dict_round_trip_is_json_and_exact() -> None:
     for _ in range(20):
         ra = a.step(1.0, np.array([50.0, 20.0, 1.0]))
         rb = b.step(1.0, np.array([50.0, 20.0, 1.0]))
-    np.testing.assert_array_equal(ra.eta_d_n, rb.eta_d_n)
-    np.testing.assert_array_equal(ra.eta_ddot_d_n, rb.eta_ddot_d_n)
+    np.testing.assert_array_equal(ra.eta_d_ned, rb.eta_d_ned)
+    np.testing.assert_array_equal(ra.eta_ddot_d_ned, rb.eta_ddot_d_ned)
     with pytest.raises(ValueError, match="invalid reference model state"):
         b.load_state_dict({"initialised": True})
 

@@ -148,11 +148,11 @@ def test_without_a_valid_rate_of_turn_nothing_changes() -> None:
         trace = []
         for _ in range(500):
             out = run.step()
-            trace.append((tuple(out.y_n), out.measured, out.heading_available, out.heading_rate_source))
+            trace.append((tuple(out.y_ned), out.measured, out.heading_available, out.heading_rate_source))
         run.gyro_frozen = None
         for _ in range(300):
             out = run.step()
-            trace.append((tuple(out.y_n), out.measured, out.heading_available, out.heading_rate_source))
+            trace.append((tuple(out.y_ned), out.measured, out.heading_available, out.heading_rate_source))
         outputs.append(trace)
     assert outputs[0] == outputs[1]
     assert any(not available for _, _, available, _ in outputs[0])  # (the heading was lost)
@@ -174,4 +174,4 @@ def test_the_gyros_own_rate_carries_the_heading_while_the_gyro_is_rejected() -> 
         out = run.hub.update(run.t, measurements, [0.0, 0.0, psi], [1.0, 1.0, GYRO_SIGMA ** 2])
     assert out is not None and not out.heading_available
     assert out.heading_rate_source == "gyro1 rate of turn" and out.measured[2]
-    assert abs(math.degrees(ssa(out.y_n[2] - original(run.t)[0]))) < 0.2
+    assert abs(math.degrees(ssa(out.y_ned[2] - original(run.t)[0]))) < 0.2

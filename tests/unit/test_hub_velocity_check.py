@@ -32,14 +32,14 @@ class Vessel:
         self.turns = turns
 
     def at(self, t: float) -> tuple[float, float, float, float, float, float]:
-        north = east = v_n = v_e = 0.0
+        north = east = v_north = v_east = 0.0
         for t0, t1, mn, me in self.moves:
             span = min(max(t - t0, 0.0), t1 - t0)
             north += mn * span
             east += me * span
             if t0 <= t < t1:
-                v_n += mn
-                v_e += me
+                v_north += mn
+                v_east += me
         psi = 0.5
         r = 0.0
         for t0, t1, rate in self.turns:
@@ -49,11 +49,11 @@ class Vessel:
         a = self.wave_m
         north += a * math.sin(0.8 * t) + 0.6 * a * math.sin(0.55 * t + 1.0)
         east += 0.7 * a * math.cos(0.8 * t + 0.3) + 0.5 * a * math.sin(0.55 * t)
-        v_n += a * 0.8 * math.cos(0.8 * t) + 0.6 * a * 0.55 * math.cos(0.55 * t + 1.0)
-        v_e += -0.7 * a * 0.8 * math.sin(0.8 * t + 0.3) + 0.5 * a * 0.55 * math.cos(0.55 * t)
+        v_north += a * 0.8 * math.cos(0.8 * t) + 0.6 * a * 0.55 * math.cos(0.55 * t + 1.0)
+        v_east += -0.7 * a * 0.8 * math.sin(0.8 * t + 0.3) + 0.5 * a * 0.55 * math.cos(0.55 * t)
         psi += math.radians(0.3) * math.sin(0.8 * t)
         r += math.radians(0.3) * 0.8 * math.cos(0.8 * t)
-        return north, east, psi, v_n, v_e, r
+        return north, east, psi, v_north, v_east, r
 
 
 class Run:
@@ -62,7 +62,8 @@ class Run:
     45°, as the plant's gnss_drift (back at once at t1)."""
 
     def __init__(self, vessel: Vessel, *, seed: int = 1, lever_arm=(30.0, 5.0), velocity: bool = True,
-                 drift: tuple[float, float, float] | None = None, **hub: float) -> None:
+                 drift: tuple[float, float, float] | None = None, freeze: tuple[float, float] | None = None,
+                 **hub: float) -> None:
         sensors = [SensorConfig("gnss1", SensorKind.POSITION, 5.0, GNSS_SIGMA, lever_arm, VELOCITY_SIGMA),
                    SensorConfig("gyro1", SensorKind.HEADING, 10.0, math.radians(0.05))]
         self.alarms = AlarmRegistry()
@@ -71,6 +72,8 @@ class Run:
         self.lever_arm = lever_arm
         self.velocity = velocity
         self.drift = drift
+        self.freeze = freeze  # (t0, t1): the receiver repeats its last position and velocity, as the plant's freeze
+        self._last_gnss: list[Measurement] = []
         self.rng = np.random.default_rng(seed)
         self.t = 0.0
         self.k = 0
@@ -88,23 +91,26 @@ class Run:
         for _ in range(round(seconds / DT)):
             self.k += 1
             t = self.t = self.k * DT
-            north, east, psi, v_n, v_e, r = self.vessel.at(t)
+            north, east, psi, v_north, v_east, r = self.vessel.at(t)
             measurements = [Measurement(t, "gyro1", Heading((psi + math.radians(0.05) * self.rng.standard_normal())
                                                             % (2 * math.pi)))]
-            if self.k % 2 == 0:  # 5 Hz
-                arm_n, arm_e = lever_arm_ned(*self.lever_arm, psi)
+            if self.k % 2 == 0 and self.freeze is not None and self.freeze[0] <= t < self.freeze[1]:
+                measurements += [Measurement(t, m.source, m.message) for m in self._last_gnss]
+            elif self.k % 2 == 0:  # 5 Hz
+                arm_north, arm_east = lever_arm_ned(*self.lever_arm, psi)
                 noise = self.rng.standard_normal(4)
-                e_n, e_e = self.error(t)
-                lat, lon = DATUM.surface_to_geodetic(north + arm_n + e_n + GNSS_SIGMA * noise[0],
-                                                     east + arm_e + e_e + GNSS_SIGMA * noise[1])
+                e_north, e_east = self.error(t)
+                lat, lon = DATUM.surface_to_geodetic(north + arm_north + e_north + GNSS_SIGMA * noise[0],
+                                                     east + arm_east + e_east + GNSS_SIGMA * noise[1])
                 measurements.append(Measurement(t, "gnss1", PositionFix(lat, lon, FixQuality.DGPS)))
                 if self.velocity:  # the antenna's: v + r × lever arm (body y starboard: r·(−y, x) in body axes)
                     x, y = self.lever_arm
-                    a_n, a_e = lever_arm_ned(-r * y, r * x, psi)
-                    vn = v_n + a_n + VELOCITY_SIGMA * noise[2]
-                    ve = v_e + a_e + VELOCITY_SIGMA * noise[3]
+                    a_north, a_east = lever_arm_ned(-r * y, r * x, psi)
+                    vn = v_north + a_north + VELOCITY_SIGMA * noise[2]
+                    ve = v_east + a_east + VELOCITY_SIGMA * noise[3]
                     measurements.append(Measurement(t, "gnss1", CourseOverGround(math.atan2(ve, vn) % (2 * math.pi),
                                                                                  math.hypot(vn, ve))))
+                self._last_gnss = measurements[1:]
             self.out = self.hub.update(t, measurements, [north, east, psi], [0.25, 0.25, 1e-6])
             check = self.hub._tracks["gnss1"].velocity  # (the statistic is what is tested)
             assert check is not None
@@ -152,7 +158,7 @@ def test_slow_drift_is_rejected_and_the_position_dead_reckoned_on_the_velocity()
         out = run.step(1.0)
         if run.rejected_at is not None:
             north, east, *_ = run.vessel.at(run.t)
-            worst = max(worst, math.hypot(out.y_n[0] - north, out.y_n[1] - east))
+            worst = max(worst, math.hypot(out.y_ned[0] - north, out.y_ned[1] - east))
             assert out.position_velocity_source == "gnss1" and not out.position_available
     assert run.rejected_at is not None and run.rejected_at - 300.0 < 1.0 / 0.1 + 5.0
     assert worst < 1.0
@@ -193,3 +199,16 @@ def test_operator_accepts_the_rejected_receiver() -> None:
     assert run.hub.accept_reference("gnss1")
     run.step(0.2)
     assert not run.alarms.is_active(CODE)
+
+
+def test_a_frozen_receiver_is_the_freeze_tests_not_a_velocity_disagreement() -> None:
+    """A receiver that freezes during a move repeats its position *and* its velocity: the velocity's integral grows
+    while the position stands. The freeze test rejects it; the velocity check restarts and says nothing, and the
+    receiver is back when it reports again."""
+    vessel = Vessel(wave_m=0.3, moves=[(100.0, 200.0, 0.4, 0.2)])
+    run = Run(vessel, freeze=(120.0, 150.0))
+    run.step(145.0)
+    assert run.hub.state_of("gnss1") is SensorState.FROZEN
+    run.step(60.0)
+    assert run.rejected_at is None and not run.alarms.is_active(CODE)
+    assert run.hub.state_of("gnss1") is SensorState.OK and run.out is not None and run.out.position_available

@@ -32,13 +32,13 @@ TIMEOUT_S = 20.0
 def _payloads(seq: int = 1) -> dict[str, bytes]:
     t = 100.0 + seq
     return {
-        "estimate": sc.estimate_payload(t_s=t, seq=seq, estimator="mmae", eta_n=[12.34, -5.5, math.radians(350.0)],
+        "estimate": sc.estimate_payload(t_s=t, seq=seq, estimator="mmae", eta_ned=[12.34, -5.5, math.radians(350.0)],
                                         nu_b=[0.25, -0.05, math.radians(1.5)], bias=[2e3, -1e3, 4e4],
-                                        eta_wf_n=[0.3, 0.2, 0.01], covariance_diag=np.ones(15)),
+                                        eta_wf_ned=[0.3, 0.2, 0.01], covariance_diag=np.ones(15)),
         "mmae": sc.mmae_payload(t_s=t, seq=seq, omegas_rad_s=[0.56, 0.73, 0.80], weights=[0.125, 0.625, 0.25],
                                 omega_hat_rad_s=0.71),
         "control": sc.control_payload(t_s=t, seq=seq, controller="mrac", tau_b=[15e3, -25e3, 35e3],
-                                      setpoint_n=[10.0, -5.0, 0.0], reference_n=[11.0, -5.0, 0.0],
+                                      setpoint_ned=[10.0, -5.0, 0.0], reference_ned=[11.0, -5.0, 0.0],
                                       reference_nu_b=[0.1, 0.0, 0.0], tau_achieved_b=[15e3, -20e3, 35e3],
                                       mrac_mass=[6.36e6, 7.0e6, 4.0e9], mrac_damping=[1.0e5, 2.0e5, 3.0e8]),
         "status": sc.status_payload(

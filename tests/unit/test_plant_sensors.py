@@ -209,12 +209,12 @@ def test_gnss_velocity_is_the_antennas_true_velocity_over_ground() -> None:
         out.extend(sensor.sample(t, 0.5 * t, 0.0, 0.01 * t))
     velocity = _velocities(out)
     assert 0.0 not in velocity and len(velocity) == 100
-    for t, (v_n, v_e) in velocity.items():
+    for t, (v_north, v_east) in velocity.items():
         if t < 0.3:  # (the second fix: the mean over the first epoch)
             continue
         psi = 0.01 * t
-        assert v_n == pytest.approx(0.5 - 10.0 * 0.01 * math.sin(psi), abs=1e-4)
-        assert v_e == pytest.approx(10.0 * 0.01 * math.cos(psi), abs=1e-4)
+        assert v_north == pytest.approx(0.5 - 10.0 * 0.01 * math.sin(psi), abs=1e-4)
+        assert v_east == pytest.approx(10.0 * 0.01 * math.cos(psi), abs=1e-4)
 
 
 def test_gnss_velocity_ignores_drift_and_jump_freezes_with_the_position() -> None:

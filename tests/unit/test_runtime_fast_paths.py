@@ -249,18 +249,18 @@ def test_jerk_limited_acceleration_persists_as_a_list() -> None:
     controller._jerk_limited(0.1, Reference(np.zeros(3), np.zeros(3), np.zeros(3)))
     limited = controller._jerk_limited(0.1, Reference(np.zeros(3), np.zeros(3), np.array([1.0, -1.0, 1e-3])))
     step = [j * 0.1 for j in controller._jerk_limit]
-    assert limited.eta_ddot_d_n.tolist() == [min(1.0, step[0]), -min(1.0, step[1]), min(1e-3, step[2])]
-    assert controller._accel_ff_n == tuple(limited.eta_ddot_d_n.tolist())
+    assert limited.eta_ddot_d_ned.tolist() == [min(1.0, step[0]), -min(1.0, step[1]), min(1e-3, step[2])]
+    assert controller._accel_ff_ned == tuple(limited.eta_ddot_d_ned.tolist())
     # persisted as before (a list of 3 floats) and restored
     controller.estimator.reset(np.zeros(3))
     controller._estimator_ready = True
     controller.mode = Mode.AUTO_POSITION
     controller.reference_model.reset(np.zeros(3))
     state = json.loads(json.dumps(controller.state_dict(0.0)))
-    assert state["accel_ff_n"] == limited.eta_ddot_d_n.tolist()
+    assert state["accel_ff_n"] == limited.eta_ddot_d_ned.tolist()
     other = _controller()
     other.load_state_dict(state, 0.0)
-    assert other._accel_ff_n == controller._accel_ff_n
+    assert other._accel_ff_ned == controller._accel_ff_ned
 
 
 @given(st.lists(st.tuples(st.floats(0.0, 60.0), st.sampled_from([None, None, "checksum", "invalid_fix", "garbage"])),
