@@ -16,7 +16,9 @@ t = 0, 36000), ``plant`` {``rate_hz`` (RK4 substep rate; per-vessel default), ``
 ``sway_mps``, ``yaw_rate_degps``},
 ``sea_states`` [{``t_s``, ``spectrum`` (jonswap | pierson_moskowitz), ``hs_m``, ``omega_peak_rad_s`` or
 ``tp_s``, ``gamma`` (jonswap, 3.3), ``direction_deg`` (waves come FROM), ``components`` (≥ 100, 200),
-``fade_s`` (30)}] (calm before the first; changes at least ``fade_s`` apart),
+``fade_s`` (30), ``swell`` (optional: a second wave system beside the wind sea, {``hs_m``, ``omega_peak_rad_s`` or
+``tp_s``, ``direction_deg``, ``spectrum``, ``gamma``, ``components``})}] (calm before the first; changes at least
+``fade_s`` apart),
 ``current`` {``speed_mps``, ``direction_deg`` (flows TOWARD), ``variation`` {``speed_std_mps``,
 ``direction_std_deg``, ``time_constant_s``}},
 ``wind`` {``speed_mps`` (1-h mean at 10 m), ``direction_deg`` (comes FROM), ``gusts`` (true), ``height_m``},
@@ -62,7 +64,7 @@ from dpbase.yamlfile import read_yaml_file
 from dpcontrol.models.vessels import VesselData, vessel_from_config
 from interfaces.messages import FixQuality
 from sim_plant.environment.spectra import SPECTRA
-from sim_plant.environment.waves import SeaState
+from sim_plant.environment.waves import SeaState, WaveSystem
 from sim_plant.faults import FAULT_KINDS, GNSS_FAULTS, GYRO_FAULTS, ROT_FAULTS, THRUSTER_FAULTS, Fault
 from sim_plant.sensors import PROTOCOLS, SENSOR_KINDS, GnssSpec, GyroSpec, RotSpec, SensorSpec
 from sim_plant.vessel_data import extras_for
@@ -364,34 +366,46 @@ def _increasing(times: list[tuple[str, float]], what: str) -> None:
             raise ConfigError(where, f"{what} times in increasing order (after {earlier:g} s)", later)
 
 
+def _wave_system(sec: Section, where: str) -> WaveSystem:
+    """The spectrum keys of a sea state or of its swell: ``hs_m``, ``omega_peak_rad_s`` or ``tp_s``, ``spectrum``,
+    ``gamma``, ``direction_deg``, ``components``."""
+    spectrum = sec.string("spectrum", "jonswap", choices=SPECTRA)
+    hs = sec.number("hs_m", minimum=0.0, maximum=MAX_HS_M)
+    if sec.has("omega_peak_rad_s") == sec.has("tp_s"):
+        raise ConfigError(join(where, "omega_peak_rad_s"), "exactly one of omega_peak_rad_s or tp_s",
+                          show_got=False)
+    if sec.has("tp_s"):
+        omega = 2.0 * math.pi / sec.number("tp_s", minimum=0.0, exclusive_minimum=True)
+    else:
+        omega = sec.number("omega_peak_rad_s", minimum=0.0, exclusive_minimum=True)
+    if spectrum == "jonswap":
+        gamma = sec.number("gamma", 3.3, minimum=1.0, maximum=20.0)
+    elif sec.has("gamma"):
+        raise ConfigError(join(where, "gamma"), "no gamma for spectrum pierson_moskowitz (it is jonswap's)",
+                          show_got=False)
+    else:
+        gamma = 1.0
+    return WaveSystem(hs_m=hs, omega_peak_rad_s=omega, direction_rad=math.radians(sec.number("direction_deg", 0.0)),
+                      spectrum=spectrum, gamma=gamma,
+                      components=sec.integer("components", 200, minimum=MIN_WAVE_COMPONENTS, maximum=5000))
+
+
 def _sea_states(root: Section) -> tuple[SeaState, ...]:
     states: list[SeaState] = []
     times: list[tuple[str, float]] = []
     for where, item in root.items("sea_states"):
         sec = Section.of(item, where)
         t = sec.number("t_s", minimum=0.0)
-        spectrum = sec.string("spectrum", "jonswap", choices=SPECTRA)
-        hs = sec.number("hs_m", minimum=0.0, maximum=MAX_HS_M)
-        if sec.has("omega_peak_rad_s") == sec.has("tp_s"):
-            raise ConfigError(join(where, "omega_peak_rad_s"), "exactly one of omega_peak_rad_s or tp_s",
-                              show_got=False)
-        if sec.has("tp_s"):
-            omega = 2.0 * math.pi / sec.number("tp_s", minimum=0.0, exclusive_minimum=True)
-        else:
-            omega = sec.number("omega_peak_rad_s", minimum=0.0, exclusive_minimum=True)
-        if spectrum == "jonswap":
-            gamma = sec.number("gamma", 3.3, minimum=1.0, maximum=20.0)
-        elif sec.has("gamma"):
-            raise ConfigError(join(where, "gamma"), "no gamma for spectrum pierson_moskowitz (it is jonswap's)",
-                              show_got=False)
-        else:
-            gamma = 1.0
+        wind_sea = _wave_system(sec, where)
+        swell = None
+        if sec.has("swell"):
+            swell_sec = sec.section("swell")
+            swell = _wave_system(swell_sec, swell_sec.path)
+            swell_sec.finish()
         state = SeaState(
-            t_s=t, hs_m=hs, omega_peak_rad_s=omega,
-            direction_rad=math.radians(sec.number("direction_deg", 0.0)),
-            spectrum=spectrum, gamma=gamma,
-            components=sec.integer("components", 200, minimum=MIN_WAVE_COMPONENTS, maximum=5000),
-            fade_s=sec.number("fade_s", 30.0, minimum=0.0),
+            t_s=t, hs_m=wind_sea.hs_m, omega_peak_rad_s=wind_sea.omega_peak_rad_s,
+            direction_rad=wind_sea.direction_rad, spectrum=wind_sea.spectrum, gamma=wind_sea.gamma,
+            components=wind_sea.components, fade_s=sec.number("fade_s", 30.0, minimum=0.0), swell=swell,
         )
         sec.finish()
         if states and state.t_s < states[-1].t_s + state.fade_s:

@@ -53,6 +53,10 @@ class ControlOutput:
     rudder_rad : float or None
         The rudder command [rad] of a controller that steers with the rudder (``rudder_steering``): the
         allocation sets it directly; None for the DP controllers.
+    tracked_ned : ndarray, shape (3,), or None
+        The pose the controller makes the vessel follow at this step ``[m, m, rad]`` (NED), when it is not the
+        guidance's reference ``η_d``: the MRAC's reference model ``y_M`` (seed 003 eq. (15)), which trails
+        ``η_d`` by design. The deviation alarms measure from it. None: the vessel follows ``η_d``.
     """
 
     tau_b: np.ndarray
@@ -60,6 +64,7 @@ class ControlOutput:
     velocity_error_b: np.ndarray
     parameters: Mapping[str, float] | None = None
     rudder_rad: float | None = None
+    tracked_ned: np.ndarray | None = None
 
 
 class MassAdaptation(Protocol):
@@ -111,7 +116,9 @@ class PositionController(Protocol):
     itself), or None for a controller with fixed parameters. ``rudder_steering``: the controller holds heading
     only and steers with the rudder (the course-keeping autopilot): its output carries the rudder command, the
     runtime engages it in ``auto_heading`` and feeds the estimator the rudder angle; False for the DP
-    controllers, which ask the allocation for a force in every DOF.
+    controllers, which ask the allocation for a force in every DOF. What pose the controller makes the vessel
+    follow, when it is not the guidance's ``η_d``, each step says in :attr:`ControlOutput.tracked_ned`; the runtime
+    watches the deviation from it and asks nothing else about the controller's kind.
     """
 
     @property

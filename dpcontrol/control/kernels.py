@@ -65,6 +65,7 @@ COUPLE_INERTIA, COUPLE_ROTATION, COUPLE_CORIOLIS, COUPLE_DAMPING, COUPLE_DRAG = 
 S_Y_M, S_YD_M, S_A2, S_A1, S_COMMAND, S_ACHIEVED, S_FLAGS, S_REST = range(8)
 S_ROWS = 8
 OUT_TAU, OUT_ERROR, OUT_VELOCITY_ERROR, OUT_PARAMETERS = 0, 3, 6, 9
+OUT_REFERENCE_MODEL = OUT_PARAMETERS + 6  # y_M, the last three of the parameters
 OUT_SIZE = 18
 
 #: :func:`mrac_step`'s return value for an input that is not 3 finite numbers: ``ERROR_INPUT - k`` for the
@@ -427,12 +428,17 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
 # the back-calculation gains 1/T_t [1/s] (``G_TRACKING``) and the integral limits [N, N, N·m] (``G_LIMIT``);
 # ``structure`` bits ``P_INTEGRATOR``, ``P_MASS``, ``P_DAMPING``, ``P_LIMIT`` say which are in use;
 # ``pid_state`` (``P_ROWS``, 3): ``P_INTEGRAL`` τ_I, ``P_COMMAND`` the last command, ``P_ACHIEVED`` the force the
-# allocator achieved for it and ``P_FLAGS`` = (achieved force known, unused, unused); ``pid_out`` (9,): τ, e_b, ė_b.
+# allocator achieved for it, ``P_FLAGS`` = (achieved force known, unused, unused) and ``P_DUTY`` the low-passed
+# saturation side d̄ (+1 achieved above the command, −1 below, 0 met) [-]; ``pid_out`` (9,): τ, e_b, ė_b.
 G_KP, G_KD, G_KI, G_MASS, G_DAMPING, G_TRACKING, G_LIMIT = 0, 3, 6, 9, 12, 15, 16
 G_ROWS = 17
 P_INTEGRATOR, P_MASS, P_DAMPING, P_LIMIT = 1, 2, 4, 8
-P_INTEGRAL, P_COMMAND, P_ACHIEVED, P_FLAGS = range(4)
-P_ROWS = 4
+P_INTEGRAL, P_COMMAND, P_ACHIEVED, P_FLAGS, P_DUTY = range(5)
+P_ROWS = 5
+#: |low-passed saturation side| above which a DOF counts as saturated at low frequency: short on one side more
+#: than half of the time, i.e. the low-frequency demand (the median of a demand with a symmetric wave-frequency
+#: part) is itself beyond what the thrusters give; below it only wave-frequency peaks are cut
+SATURATED_DUTY = 0.5
 PID_OUT_SIZE = 9
 
 
@@ -448,7 +454,8 @@ def pid_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind:
              eta_dot_d: np.ndarray, eta_ddot_d: np.ndarray, mask: int, structure: int, gains: np.ndarray,
              state: np.ndarray, out: np.ndarray) -> int:
     """One PID period (:mod:`dpcontrol.control.pid`): errors in the vessel-parallel frame, the control law and
-    the integral force with conditional integration and back-calculation (anti-windup).
+    the integral force with conditional integration and back-calculation where the low-frequency demand is
+    beyond capability (anti-windup).
 
     Parameters
     ----------
@@ -509,15 +516,24 @@ def pid_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind:
         command = state[P_COMMAND]
         achieved = state[P_ACHIEVED]
         known = state[P_FLAGS, 0] != 0.0
+        duty = state[P_DUTY]
         for i in range(3):
             increment = -_row_product(gains, G_KI, i, e0, e1, e2) * dt
             if known:
                 shortfall = achieved[i] - command[i]
+                side = 0.0
                 if abs(shortfall) > SATURATION_TOLERANCE * (1.0 + abs(command[i])):
-                    # conditional integration: no further integration into the saturated direction
-                    if increment * command[i] > 0.0:
+                    side = 1.0 if shortfall > 0.0 else -1.0
+                # the side low-passed over T_t (not filtered in a DOF without T_t, i.e. without integral)
+                rate = gains[G_TRACKING, i]
+                alpha = 1.0 - math.exp(-dt * rate) if rate > 0.0 else 1.0
+                duty[i] += alpha * (side - duty[i])
+                if abs(duty[i]) > SATURATED_DUTY and side * duty[i] > 0.0:
+                    # short now, on the side where the low-frequency demand is beyond capability: conditional
+                    # integration (nothing further into the saturated side) and back-calculation
+                    if increment * duty[i] < 0.0:
                         increment = 0.0
-                    increment += dt * gains[G_TRACKING, i] * shortfall
+                    increment += dt * rate * shortfall
             integral[i] += increment
             if structure & P_LIMIT:  # np.clip: NaN propagates
                 limit = gains[G_LIMIT, i]
@@ -538,6 +554,7 @@ def pid_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind:
         if not (mask >> i) & 1:
             tau = 0.0
             integral[i] = 0.0
+            state[P_DUTY, i] = 0.0
         out[i] = tau
         state[P_COMMAND, i] = tau
     out[3] = e0

@@ -189,6 +189,7 @@ from dpcontrol.control.kernels import (
     MASS_CHANGED,
     OUT_ERROR,
     OUT_PARAMETERS,
+    OUT_REFERENCE_MODEL,
     OUT_SIZE,
     OUT_TAU,
     OUT_VELOCITY_ERROR,
@@ -857,7 +858,8 @@ class MracController:
                       "damping_sway_nspm": c1, "damping_yaw_nmsprad": c2, "ref_model_north_m": north,
                       "ref_model_east_m": east, "ref_model_heading_rad": heading}
         return ControlOutput(out[OUT_TAU:OUT_TAU + 3], out[OUT_ERROR:OUT_ERROR + 3],
-                             out[OUT_VELOCITY_ERROR:OUT_VELOCITY_ERROR + 3], parameters)
+                             out[OUT_VELOCITY_ERROR:OUT_VELOCITY_ERROR + 3], parameters,
+                             tracked_ned=out[OUT_REFERENCE_MODEL:OUT_REFERENCE_MODEL + 3])
 
     def mass_at_bound(self) -> int | None:
         """The first DOF (0 surge, 1 sway, 2 yaw) whose ``â₂`` sits on a projection bound, else None.

@@ -13,13 +13,22 @@ compensation of the bias ``b̂`` estimated by the wave filter (the force that th
 environment exerts on the vessel, seed 002 eqs. (16)–(17)): ``τ = −b̂ + PD``.
 
 Anti-windup (integrator mode) uses the force the allocator reports as achieved
-(:meth:`PidController.notify_achieved`):
+(:meth:`PidController.notify_achieved`), and acts only where the low-frequency demand is beyond capability.
+The command carries the wave-frequency part of the feedback (with an estimator that filters no waves, all of
+it); its peaks are cut by the thrust limits and the drives' rate limits while the low-frequency demand is
+well within capability. Anti-windup at every cut peak would bleed the integral (the mean of an
+oscillation clipped on one side lies off its centre) and hold the vessel off station (docs/configuration.md, "The PID's
+anti-windup"). Per DOF, with the shortfall ``s = τ_achieved − τ_commanded``:
 
-* back-calculation (Åström & Hägglund): ``τ̇_I = −K_I e_b + (τ_achieved − τ_commanded)/T_t`` with
-  the tracking time constant ``T_t = √(T_i·T_d)`` per DOF by default (``T_i = K_P/K_I``,
-  ``T_d = K_D/K_P`` from the diagonals);
-* conditional integration: a DOF whose command was not achieved does not integrate further in
-  the saturated direction.
+* the saturation side ``sign(s)`` (0 when met) is low-passed with the time constant ``T_t`` into ``d̄``;
+  ``|d̄| > 1/2`` — short on one side more than half of the time: the low-frequency demand itself, the
+  median of a demand with a symmetric wave-frequency part, is beyond what the thrusters give — marks the
+  DOF saturated at low frequency;
+* in a step short on that side, and only then, conditional integration (no further integration into the
+  saturated side) and back-calculation (Åström & Hägglund): ``τ̇_I = −K_I e_b + s/T_t``; without a
+  wave-frequency part (``d̄`` at ±1 within a few ``T_t``) this is the classic scheme;
+* the tracking time constant is ``T_t = √(T_i·T_d)`` per DOF by default (Åström & Hägglund's rule,
+  ``T_i = K_P/K_I``, ``T_d = K_D/K_P`` from the diagonals).
 """
 
 from __future__ import annotations
@@ -53,6 +62,7 @@ from dpcontrol.control.kernels import (
     P_ACHIEVED,
     P_COMMAND,
     P_DAMPING,
+    P_DUTY,
     P_FLAGS,
     P_INTEGRAL,
     P_INTEGRATOR,
@@ -100,7 +110,9 @@ class PidConfig:
     mass_matrix, damping_matrix : ndarray, shape (3, 3), or None
         Design M and D for the reference feed-forward ``M ν̇_d + D ν_d`` (None: no feed-forward).
     antiwindup_time_constant_s : tuple of 3 float, or None
-        Back-calculation tracking time constants [s]; None: ``√(T_i·T_d)`` per DOF.
+        Back-calculation tracking time constants ``T_t`` [s], also the time constant over which the
+        anti-windup judges whether the low-frequency demand is beyond capability; None: ``√(T_i·T_d)``
+        per DOF.
     integral_limit : tuple of 3 float, or None
         Largest magnitude of the integral force per DOF [N, N, N·m]; None: unlimited.
     """
@@ -294,7 +306,7 @@ class PidController:
             structure |= P_LIMIT
         self._gains = gains
         self._structure = structure
-        self._state = np.zeros((P_ROWS, 3))  # τ_I, last command, last achieved force, flags
+        self._state = np.zeros((P_ROWS, 3))  # τ_I, last command, last achieved force, flags, d̄
         self._zero3 = np.zeros(3)  # b̂ and τ̂_wind when not given
 
     @property
@@ -374,22 +386,33 @@ class PidController:
         """Clear the integrator and the saturation memory (bumpless entry: guidance starts at the estimate)."""
         self._state[:] = 0.0
 
+    @property
+    def saturation_duty(self) -> np.ndarray:
+        """The low-passed saturation side ``d̄`` per DOF [-] (copy): −1 short of a positive command all the time,
+        +1 of a negative one; beyond ±1/2 the DOF counts as saturated at low frequency."""
+        return self._state[P_DUTY].copy()
+
     def state_dict(self) -> dict[str, Any]:
-        """JSON-able state: integral force, last command and last achieved force."""
+        """JSON-able state: integral force, last command, last achieved force and the saturation duty ``d̄``."""
         state = self._state
         return {
             "integral_force_b": state[P_INTEGRAL].tolist(),
             "last_command_b": state[P_COMMAND].tolist(),
             "last_achieved_b": state[P_ACHIEVED].tolist() if state[P_FLAGS, 0] else None,
+            "saturation_duty": state[P_DUTY].tolist(),
         }
 
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
-        """Restore :meth:`state_dict` output (validated first; on error nothing changes)."""
+        """Restore :meth:`state_dict` output (validated first; on error nothing changes). The saturation
+        duty starts at zero when absent (a state saved before it existed)."""
         try:
             integral = vector3("integral_force_b", state["integral_force_b"])
             command = vector3("last_command_b", state["last_command_b"])
             achieved_raw = state.get("last_achieved_b")
             achieved = None if achieved_raw is None else vector3("last_achieved_b", achieved_raw)
+            duty = vector3("saturation_duty", state.get("saturation_duty", (0.0, 0.0, 0.0)))
+            if np.any(np.abs(duty) > 1.0):
+                raise ValueError(f"saturation_duty must be within [-1, 1], got {duty.tolist()}")
         except (KeyError, TypeError, ValueError) as error:
             raise ValueError(f"invalid PID state: {error}") from None
         ours = self._state
@@ -397,3 +420,4 @@ class PidController:
         ours[P_COMMAND] = command
         ours[P_ACHIEVED] = 0.0 if achieved is None else achieved
         ours[P_FLAGS, 0] = float(achieved is not None)
+        ours[P_DUTY] = duty

@@ -216,6 +216,7 @@ class PemWaveFilter:
     kind = "pem"
 
     dead_reckons = True  # the LF vessel model with the force input (see WaveFilter)
+    force_model = True
 
     def __init__(self, config: WaveFilterConfig) -> None:
         if config.kind != "pem":

@@ -137,12 +137,19 @@ class WaveFilter(Protocol):
     ``dead_reckons``: the estimator's model carries the pose through a reference outage (a force input and a
     vessel model: every wave filter). A kinematic filter without one (seed 004's Kalman–Bucy) only extrapolates
     the last velocity, which the runtime does not hold position on (see ``FallbackSettings``).
+
+    ``force_model``: the estimator predicts with the DP vessel model ``M₀ν̇ + Dν = τ + Rᵀb`` (seed 002 eq. (12)),
+    so an inertia estimate (the MRAC's, seed 003) can replace ``M₀`` by scaling the force input
+    (``MassAdaptiveEstimator``); False for a filter without that model (Kalman–Bucy, the Nomoto autopilot's).
     """
 
     config: WaveFilterConfig
 
     @property
     def dead_reckons(self) -> bool: ...
+
+    @property
+    def force_model(self) -> bool: ...
 
     def reset(self, y_ned: np.ndarray) -> None:
         """Initialise on a fix [north_m, east_m, psi_rad]: LF pose = y, everything else 0.
@@ -193,6 +200,7 @@ class FrameFilter:
 
     kind: str
     dead_reckons = True  # the LF vessel model with the force input (see WaveFilter)
+    force_model = True
 
     def __init__(self, config: WaveFilterConfig, index: StateIndex) -> None:
         self.config = config

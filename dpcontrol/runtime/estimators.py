@@ -70,6 +70,7 @@ class KalmanBucyEstimator:
 
     kind = "kalman_bucy"
     dead_reckons = False  # no force input: the last velocity, extrapolated (see WaveFilter)
+    force_model = False
 
     def __init__(self, sample_time_s: float, *, process_noise_scale: float = 0.02) -> None:
         for name, value in (("sample_time_s", sample_time_s), ("process_noise_scale", process_noise_scale)):
@@ -211,6 +212,7 @@ class CourseKeepingEstimator:
     kind = "heading_kf"
 
     dead_reckons = True  # the Nomoto model with the rudder input carries the heading
+    force_model = False  # the Nomoto model, not the DP vessel model
 
     def __init__(self, vessel: VesselData, sample_time_s: float, *, omega0_rad_s: float = 1.2, zeta: float = 0.1,
                  compass_std_rad: float = math.radians(0.5), wave_yaw_std_rad: float = math.radians(3.0),
@@ -327,6 +329,10 @@ class MassAdaptiveEstimator:
     @property
     def dead_reckons(self) -> bool:
         return self.inner.dead_reckons
+
+    @property
+    def force_model(self) -> bool:
+        return self.inner.force_model
 
     def __init__(self, inner: WaveFilter, mass_nominal: np.ndarray) -> None:
         nominal = np.array(mass_nominal, dtype=float)

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from typing import Any, ClassVar, cast
 
 from dpcontrol.runtime.config import TransportConfig
@@ -81,6 +81,17 @@ class TransportInput(ABC):
     def _reject(self, t_s: float, reason: str) -> None:
         self.rejected += 1
         self._count(t_s, reason)
+
+    def _accepted(self, t_s: float, results: Sequence[Any]) -> Iterator[Any]:
+        """A decoder's results that are not :class:`Rejected`, each counted as it is taken; the rejected ones
+        counted with their reason."""
+        for result in results:
+            item = result.item
+            if isinstance(item, Rejected):
+                self._reject(t_s, item.reason)
+                continue
+            self._count(t_s)
+            yield result
 
     @abstractmethod
     def feed(self, t_s: float, data: bytes, out: list[Measurement] | None, *, can_id: int | None = None) -> None:
@@ -179,13 +190,9 @@ class Nmea2000Input(TransportInput):
         self._results(t_s, self.decoder.expire(t_s), None)
 
     def _results(self, t_s: float, results: Sequence[Any], out: list[Measurement] | None) -> None:
-        for result in results:
-            item = result.item
-            if isinstance(item, Rejected):
-                self._reject(t_s, item.reason)
-                continue
-            self._count(t_s)
+        for result in self._accepted(t_s, results):
             if out is not None:
+                item = result.item
                 address = result.source_address
                 sensor = self.router.nmea2000(self.name, address, item, self.decoder.name_of(address))
                 if sensor is not None:
@@ -223,12 +230,8 @@ class MavlinkInput(TransportInput):
         results = self.decoder.decode_datagram(data)
         if self.on_raw is not None:
             self.on_raw(self.name, t_s, data, _first_rejection(results), {})
-        for result in results:
+        for result in self._accepted(t_s, results):
             item = result.item
-            if isinstance(item, Rejected):
-                self._reject(t_s, item.reason)
-                continue
-            self._count(t_s)
             if isinstance(item, LinkHeartbeat):
                 if self.monitor is not None:
                     change = self.monitor.beat((item.system_id, item.component_id), t_s)

@@ -43,7 +43,7 @@ from dpcontrol.guidance import Reference, ReferenceModel
 from dpcontrol.runtime.alarms import AlarmRegistry, Severity
 from dpcontrol.runtime.consequence import ConsequenceMonitor, ConsequenceReport
 from dpcontrol.runtime.deviation import DeviationMonitor
-from dpcontrol.runtime.estimators import WAVE_FILTER_KINDS, MassAdaptiveEstimator, make_estimator
+from dpcontrol.runtime.estimators import MassAdaptiveEstimator, make_estimator
 from dpcontrol.runtime.hub import HubOutput, SensorHub
 from dpcontrol.runtime.thruster_monitor import ThrusterFeedback, ThrusterMonitor
 from interfaces.messages import Measurement
@@ -188,7 +188,7 @@ class DpController:
             else (0.0, "hold_heading" if fb.position_loss == "dead_reckoning" else fb.position_loss)
         # MRAC supervision (_supervise): an estimate on a projection bound stops the adaptation
         self._mrac = self.controller.mass_adaptation
-        if self._mrac is not None and self._mrac.adapting and config.estimator.kind in WAVE_FILTER_KINDS:
+        if self._mrac is not None and self._mrac.adapting and self.estimator.force_model:
             self._mass_adaptive = MassAdaptiveEstimator(self.estimator, np.diag(vessel.mass_matrix))
             self.estimator = self._mass_adaptive
         self.thrusters = vessel.thrusters
@@ -242,7 +242,8 @@ class DpController:
         self._delivered_thrust_n = np.zeros(n)
         self._delivered_azimuth_rad = np.zeros(n)
         self._zero3 = np.zeros(3)
-        self._tracked_ned = np.zeros(3)  # the pose the deviation alarms measure from (MRAC: y_M)
+        # the pose the controller made the vessel follow at this step when it is not η_d (MRAC: y_M), else None
+        self._tracked_ned: np.ndarray | None = None
         self._fallback_reason = ""
         self._engaged_once = False
         self._shortfall_since: float | None = None
@@ -478,6 +479,7 @@ class DpController:
         out = self.out
         tau = out.tau_b
         out.mrac = None
+        self._tracked_ned = None
         estimate = out.estimate
         if self.mode is Mode.STANDBY or estimate is None:
             out.reference = None
@@ -494,6 +496,7 @@ class DpController:
         control = self.controller.step(dt, estimate.eta_hat_ned, estimate.nu_hat_b, estimate.bias_hat_b,
                                        reference, dof_enabled=dofs)
         tau[:] = control.tau_b
+        self._tracked_ned = control.tracked_ned
         parameters = control.parameters
         if parameters is not None:
             # the controller builds a new dict every step: kept as it is (another mapping is copied)
@@ -530,14 +533,10 @@ class DpController:
         self._capability_alarm(t_s)
         estimate = out.estimate
         tracked = None if out.reference is None else out.reference.eta_d_ned
-        mrac = out.mrac
-        if mrac is not None and tracked is not None:
-            # MRAC makes the vessel follow its reference model y_M (seed 003 eq. (15)), which trails η_d by
-            # design (8.7 m in the tanker's 20 m move): the vessel strays from y_M, not from η_d
+        if tracked is not None and self._tracked_ned is not None:
+            # a controller that makes the vessel follow its own pose (the MRAC's y_M trails η_d by design: 8.7 m
+            # in the tanker's 20 m move): the vessel strays from that pose, not from η_d
             tracked = self._tracked_ned
-            tracked[0] = mrac["ref_model_north_m"]
-            tracked[1] = mrac["ref_model_east_m"]
-            tracked[2] = mrac["ref_model_heading_rad"]
         self.deviation.update(t_s, self.mode.value, None if estimate is None else estimate.eta_hat_ned, tracked)
 
     def _jerk_limited(self, dt: float, reference: Reference) -> Reference:

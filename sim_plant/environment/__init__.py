@@ -18,6 +18,7 @@ from sim_plant.environment.waves import (
     WaveEnvironment,
     WaveField,
     WaveSample,
+    WaveSystem,
     motion_peaks,
 )
 from sim_plant.environment.wind import WindModel, wind_force_b
@@ -34,6 +35,7 @@ __all__ = [
     "WaveEnvironment",
     "WaveField",
     "WaveSample",
+    "WaveSystem",
     "WindModel",
     "motion_peaks",
     "motion_raos",

@@ -17,7 +17,10 @@ The slowly varying drift force uses Newman's approximation in envelope form: wit
 b_i = √(½ρg)·R(ω_i)·a_i, the force per unit length is |Σ b_i e^{iφ_i}|², whose mean is
 Σ ½ρg R_i² a_i² ∝ Hs² and whose fluctuation contains only difference frequencies ω_i − ω_j.
 
-A change of sea state regenerates the components; during ``fade_s`` after the change the output is
+A sea state is one wave system (a wind sea) or two (a wind sea and a swell from its own direction, each with its
+own spectrum): the systems are independent realisations, so their motions add and so do their drift forces
+(the envelopes of independent systems do not interfere in the mean). A change of sea state regenerates the
+components; during ``fade_s`` after the change the output is
 cos(πs/2)·old + sin(πs/2)·new with s a smoothstep of time, which keeps the WF motion and its rate
 continuous and, for independent realisations, the variance between the two states.
 """
@@ -43,6 +46,39 @@ _BETA_GRID = -math.pi + _BETA_STEP_RAD * np.arange(_BETA_STEPS + 1)  # the RAO t
 
 
 @dataclass(frozen=True)
+class WaveSystem:
+    """One wave system of a sea state: a swell beside the wind sea (scenario ``sea_states[i].swell``).
+
+    Attributes
+    ----------
+    hs_m : float
+        Significant wave height of this system [m].
+    omega_peak_rad_s : float
+        Its spectrum peak frequency [rad/s].
+    direction_rad : float
+        Direction it comes FROM, NED, clockwise from north [rad].
+    spectrum : {"jonswap", "pierson_moskowitz"}
+    gamma : float
+        JONSWAP peak enhancement (a swell's narrow spectrum: 3–10).
+    components : int
+        Number of regular wave components.
+    """
+
+    hs_m: float
+    omega_peak_rad_s: float
+    direction_rad: float = 0.0
+    spectrum: str = "jonswap"
+    gamma: float = 3.3
+    components: int = 200
+
+    def __post_init__(self) -> None:
+        if self.spectrum not in SPECTRA:
+            raise ValueError(f"unknown spectrum {self.spectrum!r}")
+        if self.hs_m < 0.0 or self.omega_peak_rad_s <= 0.0 or self.components < 1:
+            raise ValueError(f"invalid wave system {self}")
+
+
+@dataclass(frozen=True)
 class SeaState:
     """One sea state, in force from ``t_s`` on (scenario ``sea_states`` entry).
 
@@ -64,6 +100,8 @@ class SeaState:
         Number of regular wave components (≥ 100 in scenarios).
     fade_s : float
         Cross-fade time from the previous sea state [s].
+    swell : WaveSystem or None
+        A second wave system with its own spectrum and direction (None: the wind sea alone).
     """
 
     t_s: float
@@ -74,6 +112,7 @@ class SeaState:
     gamma: float = 3.3
     components: int = 200
     fade_s: float = 30.0
+    swell: WaveSystem | None = None
 
     def __post_init__(self) -> None:
         if self.spectrum not in SPECTRA:
@@ -83,7 +122,13 @@ class SeaState:
 
     @property
     def calm(self) -> bool:
-        return self.hs_m == 0.0
+        return not self.systems()
+
+    def systems(self) -> tuple[WaveSystem, ...]:
+        """The systems with waves, the wind sea (this state's own fields) first, then the swell."""
+        wind_sea = WaveSystem(self.hs_m, self.omega_peak_rad_s, self.direction_rad, self.spectrum, self.gamma,
+                              self.components)
+        return tuple(s for s in (wind_sea, self.swell) if s is not None and s.hs_m > 0.0)
 
 
 class WaveSample(NamedTuple):
@@ -239,22 +284,55 @@ class WaveField:
         return mean * lx, mean * ly, mean * ln
 
 
-def _peak_grid(state: SeaState) -> tuple[np.ndarray, np.ndarray]:
-    w = np.linspace(0.3 * state.omega_peak_rad_s, 5.0 * state.omega_peak_rad_s, 600)
-    return w, wave_spectrum(w, state.hs_m if state.hs_m > 0.0 else 1.0, state.omega_peak_rad_s, state.gamma,
-                            state.spectrum)
+#: A peak-finding grid: ω [rad/s] and each wave system's spectrum on it [m²·s/rad]
+PeakGrid = tuple[np.ndarray, tuple[np.ndarray, ...]]
+
+
+def _systems_or_unit(state: SeaState) -> tuple[WaveSystem, ...]:
+    """The state's wave systems, or for a calm state the wind sea's shape at unit Hs (its peaks are still asked)."""
+    return state.systems() or (WaveSystem(1.0, state.omega_peak_rad_s, state.direction_rad, state.spectrum,
+                                          state.gamma, state.components),)
+
+
+def _peak_grid(state: SeaState) -> PeakGrid:
+    """600 points per wave system over [0.3·min ωp, 5·max ωp], and each system's spectrum on them."""
+    systems = _systems_or_unit(state)
+    low = min(s.omega_peak_rad_s for s in systems)
+    high = max(s.omega_peak_rad_s for s in systems)
+    w = np.linspace(0.3 * low, 5.0 * high, 600 * len(systems))
+    return w, tuple(wave_spectrum(w, s.hs_m, s.omega_peak_rad_s, s.gamma, s.spectrum) for s in systems)
+
+
+def _system_encounters(state: SeaState, beta_rad: float, speed_along_mps: float, speed_across_mps: float
+                       ) -> list[tuple[float, float]]:
+    """Per wave system: (β relative to the bow [rad], the vessel's speed along its propagation [m/s]).
+
+    ``beta_rad`` and the speeds are those of the state's own direction (the wind sea's); a system from a
+    direction Δ further clockwise is met at β + Δ, and the speed along it is U_along·cos Δ + U_across·sin Δ
+    (``speed_across_mps``: the velocity component 90° clockwise of the wind sea's propagation).
+    """
+    out = []
+    for system in _systems_or_unit(state):
+        delta = system.direction_rad - state.direction_rad
+        if delta == 0.0:
+            out.append((beta_rad, speed_along_mps))
+        else:
+            out.append((ssa(beta_rad + delta),
+                        speed_along_mps * math.cos(delta) + speed_across_mps * math.sin(delta)))
+    return out
 
 
 def motion_peaks(state: SeaState, hull: HullDimensions, beta_rad: float, speed_along_mps: float = 0.0,
-                 grid: tuple[np.ndarray, np.ndarray] | None = None
+                 grid: PeakGrid | None = None, *, speed_across_mps: float = 0.0
                  ) -> tuple[float | None, float | None, float | None]:
-    """Peak frequencies of the continuous motion spectra |RAO_i(ω, β)|² S(ω) (surge, sway, yaw).
+    """Peak frequencies of the continuous motion spectra Σ_k |RAO_i(ω, β_k)|² S_k(ω) (surge, sway, yaw).
 
     With the vessel moving at ``speed_along_mps`` along the wave propagation direction, the spectra
     are mapped to the encounter frequency ω_e = ω − ω²U/g (density divided by |dω_e/dω|, clipped
-    near the following-sea singularity), since that is what a filter on board sees. The maximum is
-    found on a 600-point grid over [0.3, 5]·ωp and refined by a parabola through the three points
-    around it (error ≪ 0.1 % of ωp).
+    near the following-sea singularity), since that is what a filter on board sees; with a swell, each system
+    with its own β_k and speed along it (:func:`_system_encounters`), and the peak's ω mapped with the speed
+    along the system that contributes most there. The maximum is found on a 600-point grid per system over
+    [0.3, 5]·ωp and refined by a parabola through the three points around it (error ≪ 0.1 % of ωp).
 
     Returns
     -------
@@ -262,33 +340,54 @@ def motion_peaks(state: SeaState, hull: HullDimensions, beta_rad: float, speed_a
         ω of the maxima [rad/s] (encounter frequency when moving); None for a DOF the waves do not
         move (e.g. yaw in exact head seas).
     """
-    w, spectrum = grid if grid is not None else _peak_grid(state)
-    rx, ry, rpsi = motion_raos(w, beta_rad, hull)
-    if speed_along_mps != 0.0:
-        spectrum = spectrum / np.maximum(np.abs(1.0 - 2.0 * w * speed_along_mps / GRAVITY_MPS2), 0.05)
+    w, spectra = grid if grid is not None else _peak_grid(state)
+    systems = []  # per system: (RAOs (surge, sway, yaw), its spectrum as the filter sees it, speed along)
+    encounters = _system_encounters(state, beta_rad, speed_along_mps, speed_across_mps)
+    for spectrum, (beta, along) in zip(spectra, encounters, strict=True):
+        seen = spectrum if along == 0.0 else \
+            spectrum / np.maximum(np.abs(1.0 - 2.0 * w * along / GRAVITY_MPS2), 0.05)
+        systems.append((motion_raos(w, beta, hull), seen, along))
     peaks: list[float | None] = []
-    for rao in (rx, ry, rpsi):
+    for dof in range(3):
         # a DOF whose RAO is zero up to rounding (sway in exact head seas: sin π ≈ 1e-16) has no peak
-        if np.max(np.abs(rao)) <= 1e-9:
+        if all(np.max(np.abs(raos[dof])) <= 1e-9 for raos, _, _ in systems):
             peaks.append(None)
             continue
-        density = rao * rao * spectrum
+        parts = [raos[dof] * raos[dof] * spectrum for raos, spectrum, _ in systems]
+        density = parts[0] if len(parts) == 1 else np.sum(parts, axis=0)
         j = min(max(int(np.argmax(density)), 1), w.size - 2)
         y0, y1, y2 = density[j - 1], density[j], density[j + 1]
         curvature = y0 - 2.0 * y1 + y2
         shift = 0.5 * (y0 - y2) / curvature if curvature < 0.0 else 0.0
         omega = float(w[j] + shift * (w[1] - w[0]))
-        peaks.append(abs(omega - omega * omega * speed_along_mps / GRAVITY_MPS2))
+        along = systems[int(np.argmax([part[j] for part in parts]))][2]
+        peaks.append(abs(omega - omega * omega * along / GRAVITY_MPS2))
     return peaks[0], peaks[1], peaks[2]
 
 
 def motion_variances(state: SeaState, hull: HullDimensions, beta_rad: float,
-                     grid: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[float, float, float]:
-    """∫|RAO_i|² S dω for surge [m²], sway [m²], yaw [rad²] (which DOF dominates)."""
-    w, spectrum = grid if grid is not None else _peak_grid(state)
-    rx, ry, rpsi = motion_raos(w, beta_rad, hull)
-    return (float(np.trapezoid(rx * rx * spectrum, w)), float(np.trapezoid(ry * ry * spectrum, w)),
-            float(np.trapezoid(rpsi * rpsi * spectrum, w)))
+                     grid: PeakGrid | None = None) -> tuple[float, float, float]:
+    """Σ_k ∫|RAO_i(ω, β_k)|² S_k dω for surge [m²], sway [m²], yaw [rad²] (which DOF dominates)."""
+    w, spectra = grid if grid is not None else _peak_grid(state)
+    total = [0.0, 0.0, 0.0]
+    for spectrum, (beta, _) in zip(spectra, _system_encounters(state, beta_rad, 0.0, 0.0), strict=True):
+        for dof, rao in enumerate(motion_raos(w, beta, hull)):
+            total[dof] += float(np.trapezoid(rao * rao * spectrum, w))
+    return total[0], total[1], total[2]
+
+
+def spectrum_peak(state: SeaState) -> float:
+    """The wave spectrum's peak ω [rad/s]: the wind sea's ωp, or the swell's where the summed spectrum is
+    higher at the swell's peak than at the wind sea's."""
+    systems = _systems_or_unit(state)
+    if len(systems) == 1:
+        return systems[0].omega_peak_rad_s
+
+    def total(omega: float) -> float:
+        at = np.array([omega])
+        return sum(float(wave_spectrum(at, s.hs_m, s.omega_peak_rad_s, s.gamma, s.spectrum)[0]) for s in systems)
+
+    return max((s.omega_peak_rad_s for s in systems), key=total)
 
 
 @dataclass(frozen=True, slots=True)
@@ -347,27 +446,30 @@ class WaveEnvironment:
         self._rho = water_density_kgpm3
         self._drift_scale = drift_scale
         self._dominant = dominant_dof
-        self._fields: dict[int, WaveField | None] = {}
-        self._peak_cache: dict[tuple[int, int, int], SpectrumPeaks] = {}
-        self._peak_grids: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self._fields: dict[int, tuple[WaveField, ...]] = {}  # per sea state, one field per wave system
+        self._peak_cache: dict[tuple[int, int, int, int], SpectrumPeaks] = {}
+        self._peak_grids: dict[int, PeakGrid] = {}
 
     def set_hull(self, hull: HullDimensions) -> None:
         """Change the hull (draft during loading): RAO and drift tables are rebuilt."""
         self.hull = hull
-        for field in self._fields.values():
-            if field is not None:
+        for fields in self._fields.values():
+            for field in fields:
                 field.set_hull(hull)
         self._peak_cache.clear()
 
-    def _field(self, index: int) -> WaveField | None:
+    def _fields_of(self, index: int) -> tuple[WaveField, ...]:
+        """The realised wave systems of sea state ``index`` (none in calm water)."""
         if index not in self._fields:
-            state = self.sea_states[index]
-            if state.calm:
-                self._fields[index] = None
-            else:
-                comps = realise_waves(state.hs_m, state.omega_peak_rad_s, state.gamma, state.spectrum,
-                                      state.components, rng=self._rng_for(index))
-                self._fields[index] = WaveField(comps, state.direction_rad, self.hull, self._rho, self._drift_scale)
+            systems = self.sea_states[index].systems()
+            fields = []
+            if systems:
+                rng = self._rng_for(index)  # the wind sea first: a state without a swell draws as before
+                for system in systems:
+                    comps = realise_waves(system.hs_m, system.omega_peak_rad_s, system.gamma, system.spectrum,
+                                          system.components, rng=rng)
+                    fields.append(WaveField(comps, system.direction_rad, self.hull, self._rho, self._drift_scale))
+            self._fields[index] = tuple(fields)
             # fields two changes back can never be needed again (times only move forward)
             for old in [i for i in self._fields if i < index - 1]:
                 del self._fields[old]
@@ -388,32 +490,35 @@ class WaveEnvironment:
         if i < 0:
             return CALM
         state = self.sea_states[i]
-        new = self._field(i)
+        new = self._fields_of(i)
         fading = i > 0 and state.fade_s > 0.0 and t_s < state.t_s + state.fade_s
         if not fading:
-            if new is None:
+            if not new:
                 return CALM
-            x, y, p, r, ac, as_ = new.evaluate(t_s, north_m, east_m, heading_rad, north_rate_mps=north_rate_mps,
-                                               east_rate_mps=east_rate_mps)
-            lx, ly, ln = new.drift_factors()
-            f = ac * ac + as_ * as_
-            return WaveSample(x, y, p, r, (f * lx, f * ly, f * ln))
-        u = (t_s - state.t_s) / state.fade_s
-        s = u * u * (3.0 - 2.0 * u)
-        w_new = math.sin(0.5 * math.pi * s)
-        w_old = math.cos(0.5 * math.pi * s)
+            if len(new) == 1:  # (most sea states: one system, no sums)
+                x, y, p, r, ac, as_ = new[0].evaluate(t_s, north_m, east_m, heading_rad,
+                                                      north_rate_mps=north_rate_mps, east_rate_mps=east_rate_mps)
+                lx, ly, ln = new[0].drift_factors()
+                f = ac * ac + as_ * as_
+                return WaveSample(x, y, p, r, (f * lx, f * ly, f * ln))
+            weighted = [(field, 1.0) for field in new]
+        else:
+            u = (t_s - state.t_s) / state.fade_s
+            s = u * u * (3.0 - 2.0 * u)
+            w_new = math.sin(0.5 * math.pi * s)
+            w_old = math.cos(0.5 * math.pi * s)
+            weighted = [(field, w_old) for field in self._fields_of(i - 1)] + [(field, w_new) for field in new]
         total = [0.0, 0.0, 0.0, 0.0]
         drift = [0.0, 0.0, 0.0]
-        for field, weight in ((self._field(i - 1), w_old), (new, w_new)):
-            if field is None:
-                continue
+        for field, weight in weighted:
             x, y, p, r, ac, as_ = field.evaluate(t_s, north_m, east_m, heading_rad, north_rate_mps=north_rate_mps,
                                                  east_rate_mps=east_rate_mps, weight=weight)
             total[0] += x
             total[1] += y
             total[2] += p
             total[3] += r
-            # Envelopes of independent fields do not interfere in the mean; sum the forces.
+            # Envelopes of independent fields (two sea states, or a wind sea and a swell) do not interfere in
+            # the mean: sum the forces.
             lx, ly, ln = field.drift_factors()
             f = ac * ac + as_ * as_
             drift[0] += f * lx
@@ -427,7 +532,7 @@ class WaveEnvironment:
         i = self.index_at(t_s)
         if i < 0 or self.sea_states[i].calm:
             return NO_PEAKS
-        return self._peaks(i, heading_rad, speed_along_mps)
+        return self._peaks(i, heading_rad, speed_along_mps, 0.0)
 
     def peaks_for_velocity(self, t_s: float, heading_rad: float, north_rate_mps: float,
                            east_rate_mps: float) -> SpectrumPeaks:
@@ -441,13 +546,17 @@ class WaveEnvironment:
         if i < 0 or self.sea_states[i].calm:
             return NO_PEAKS
         prop = ssa(self.sea_states[i].direction_rad + math.pi)  # propagation_rad(t_s)
-        return self._peaks(i, heading_rad, north_rate_mps * math.cos(prop) + east_rate_mps * math.sin(prop))
+        c, s = math.cos(prop), math.sin(prop)
+        return self._peaks(i, heading_rad, north_rate_mps * c + east_rate_mps * s,
+                           east_rate_mps * c - north_rate_mps * s)
 
-    def _peaks(self, i: int, heading_rad: float, speed_along_mps: float) -> SpectrumPeaks:
-        """:meth:`peaks` of sea state ``i`` (in force, not calm)."""
+    def _peaks(self, i: int, heading_rad: float, speed_along_mps: float, speed_across_mps: float) -> SpectrumPeaks:
+        """:meth:`peaks` of sea state ``i`` (in force, not calm); ``speed_across_mps`` (90° clockwise of the
+        propagation) matters only to a swell from another direction."""
         state = self.sea_states[i]
         beta = ssa(state.direction_rad + math.pi - heading_rad)
-        key = (i, round(math.degrees(beta)), round(speed_along_mps * 10.0))
+        across = round(speed_across_mps * 10.0) if state.swell is not None else 0
+        key = (i, round(math.degrees(beta)), round(speed_along_mps * 10.0), across)
         cached = self._peak_cache.get(key)
         if cached is not None:
             return cached
@@ -456,7 +565,7 @@ class WaveEnvironment:
         grid = self._peak_grids.get(i)
         if grid is None:
             grid = self._peak_grids[i] = _peak_grid(state)
-        peaks = motion_peaks(state, self.hull, beta_q, speed_q, grid)
+        peaks = motion_peaks(state, self.hull, beta_q, speed_q, grid, speed_across_mps=across / 10.0)
         if self._dominant is not None:
             dominant = self._dominant
         else:
@@ -466,7 +575,7 @@ class WaveEnvironment:
         if peaks[dominant] is None:  # e.g. yaw in exact head seas: report the largest that moves
             moving = [d for d in range(3) if peaks[d] is not None]
             dominant = moving[0] if moving else dominant
-        result = SpectrumPeaks(state.omega_peak_rad_s, peaks[dominant], peaks, dominant)
+        result = SpectrumPeaks(spectrum_peak(state), peaks[dominant], peaks, dominant)
         if len(self._peak_cache) > 4096:
             self._peak_cache.clear()
         self._peak_cache[key] = result

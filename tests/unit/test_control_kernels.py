@@ -139,6 +139,7 @@ class PlainPid:
         self.integral = np.zeros(3)
         self.command = np.zeros(3)
         self.achieved: np.ndarray | None = None
+        self.duty = np.zeros(3)
 
     def step(self, dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray | None, reference: Reference,
              mask: tuple[bool, bool, bool]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -159,8 +160,13 @@ class PlainPid:
             if self.achieved is not None:
                 shortfall = self.achieved - self.command
                 for i in range(3):
+                    side = 0.0
                     if abs(shortfall[i]) > TOLERANCE * (1.0 + abs(self.command[i])):
-                        if increment[i] * self.command[i] > 0.0:
+                        side = 1.0 if shortfall[i] > 0.0 else -1.0
+                    alpha = 1.0 - math.exp(-dt * self.tracking[i]) if self.tracking[i] > 0.0 else 1.0
+                    self.duty[i] += alpha * (side - self.duty[i])
+                    if abs(self.duty[i]) > 0.5 and side * self.duty[i] > 0.0:
+                        if increment[i] * self.duty[i] < 0.0:
                             increment[i] = 0.0
                         increment[i] += dt * self.tracking[i] * shortfall[i]
             self.integral += increment
@@ -173,6 +179,7 @@ class PlainPid:
             if not mask[i]:
                 tau[i] = 0.0
                 self.integral[i] = 0.0
+                self.duty[i] = 0.0
         self.command = tau.copy()
         return tau, e_b, e_dot
 
@@ -331,13 +338,15 @@ def test_mrac_state_round_trip_keeps_the_mass_floats() -> None:
 
 
 # ---------------------------------------------------------------------- PID
-@pytest.mark.parametrize("variant", ["integrator", "bias_feedforward", "limited", "no_feedforward"])
+@pytest.mark.parametrize("variant", ["integrator", "bias_feedforward", "limited", "no_feedforward", "fast_tracking"])
 def test_pid_step_matches_the_numpy_code_it_replaced(variant: str) -> None:
     vessel = CYBERSHIP2 if variant == "bias_feedforward" else SUPPLY
     config = default_pid_config(vessel, "bias_feedforward" if variant == "bias_feedforward" else "integrator",
                                 reference_feedforward=variant != "no_feedforward")
     if variant == "limited":
         config = dataclasses.replace(config, integral_limit=(2e4, 2e4, 5e5), antiwindup_time_constant_s=(8.0, 8.0, 5.0))
+    elif variant == "fast_tracking":  # T_t of a few steps: the saturation duty crosses 1/2 in the saturated spells
+        config = dataclasses.replace(config, antiwindup_time_constant_s=(0.3, 0.3, 0.3))
     controller = PidController(config)
     plain = PlainPid(controller)
     rng = np.random.default_rng(4)
@@ -345,6 +354,7 @@ def test_pid_step_matches_the_numpy_code_it_replaced(variant: str) -> None:
         state = controller.state_dict()  # the same state for both (compared per step)
         plain.integral, plain.command = np.array(state["integral_force_b"]), np.array(state["last_command_b"])
         plain.achieved = None if state["last_achieved_b"] is None else np.array(state["last_achieved_b"])
+        plain.duty = np.array(state["saturation_duty"])
         eta, nu, bias, reference = _inputs(rng, k)
         if vessel is CYBERSHIP2:
             bias = bias * 1e-4

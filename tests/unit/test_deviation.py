@@ -16,7 +16,7 @@ from dpcontrol.bench import bench_config
 from dpcontrol.runtime.alarms import AlarmRegistry, Severity
 from dpcontrol.runtime.config import DeviationSettings, parse_config
 from dpcontrol.runtime.deviation import CLEAR_FRACTION, DeviationMonitor
-from dpcontrol.runtime.step import DpController
+from dpcontrol.runtime.step import DpController, Mode
 
 REFERENCE = np.array([10.0, -5.0, math.radians(90.0)])
 
@@ -195,3 +195,25 @@ def test_a_model_scale_wander_is_no_drift_off() -> None:
     # the full-scale horizon extrapolates each rise of the wander past the 0.3 m limit (the HIL bench's false
     # alarm: measured margins up to 1.25x the limit in lockstep, 0.43x with the vessel's horizon)
     assert any(e.code == "position.drift_off" for e in _model_scale_wander(30.0).drain_events())
+
+
+def test_an_mrac_is_watched_from_its_reference_model_not_from_the_guidance() -> None:
+    """The MRAC makes the vessel follow its reference model y_M, which trails η_d by design (seed 003 eq. (15)):
+    a vessel that follows y_M during a move is not off position, so the deviation is measured from y_M."""
+    controller = DpController(bench_config())  # the bench vessel runs the MRAC
+    controller.estimator.reset(np.zeros(3))
+    controller._estimator_ready = True
+    controller.mode = Mode.AUTO_POSITION
+    controller.reference_model.reset(np.zeros(3))
+    controller.setpoint_ned[:] = (20.0, 0.0, 0.0)
+    controller.out.estimate = controller.estimator.step(np.zeros(3), np.zeros(3))  # held at the origin
+    for k in range(300):
+        controller._control_stage(0.1 * k, 0.1)
+        controller._supervision_stage(0.1 * k)
+    mrac, reference = controller.out.mrac, controller.out.reference
+    assert mrac is not None and reference is not None
+    estimate = controller.out.estimate.eta_hat_ned
+    from_model = math.hypot(estimate[0] - mrac["ref_model_north_m"], estimate[1] - mrac["ref_model_east_m"])
+    from_guidance = math.hypot(*(estimate[:2] - reference.eta_d_ned[:2]))
+    assert from_guidance - from_model > 1.0  # y_M trails η_d in the move
+    assert controller.deviation.position_m == pytest.approx(from_model, abs=1e-9)

@@ -93,6 +93,12 @@ def test_frozen_position_is_rejected_within_the_window() -> None:
     assert alarms.is_active("sensor.gnss1.frozen")
     scene.step(5)
     assert hub.weight_of("gnss1") == 0.0 and hub.weight_of("gnss2") == pytest.approx(1.0)
+    # the operator is told why, and a frozen reference is no evidence that the estimate is right: its samples
+    # after the window are not accepted (a frozen receiver would otherwise block the reset onto the others)
+    status = {row["name"]: row for row in hub.sensor_status(scene.t)}
+    assert status["gnss1"]["detail"].startswith("identical values for")
+    last = hub._tracks["gnss1"].last_accepted_t_s
+    assert last is not None and last <= freeze_t + 5.0 + DT + 1e-9
 
 
 def test_jump_is_rejected_at_once_with_the_minimum_limit() -> None:
@@ -445,3 +451,49 @@ def test_a_persisting_jump_is_not_let_in_by_the_dead_reckoning_growth() -> None:
     scene.position_error["gnss1"] = (8.0, 0.0)
     scene.step(900)  # 90 s
     assert not hub._out.position_available and hub.state_of("gnss1") is SensorState.REJECTED
+
+
+def test_a_reference_that_agreed_until_it_dropped_out_delays_the_reset_onto_the_others() -> None:
+    """Three gyros: two step 10° together; the third agrees with the estimate until it drops out 2 s later.
+    The reset onto the two waits reject_persist_s from the last sample that agreed, not from the step: an
+    agreeing reference is evidence that the estimate is right, until it is that old."""
+    hub, alarms = _hub(n_heading=3, reject_persist_s=3.0)
+    scene = Scene(hub)
+    scene.step(50)
+    step_t = scene.t
+    scene.heading_error["gyro1"] = scene.heading_error["gyro3"] = math.radians(10.0)
+    reset_t = None
+    for k in range(100):
+        if k == 20:
+            scene.silent.add("gyro2")  # 2 s after the step
+        scene.step()
+        if alarms.is_active("estimator.reset"):
+            reset_t = scene.t
+            break
+    last_agreed = hub._tracks["gyro2"].last_accepted_t_s
+    assert last_agreed is not None and last_agreed == pytest.approx(step_t + 2.0, abs=1.5 * DT)
+    assert reset_t is not None and last_agreed + 3.0 - 1e-9 <= reset_t <= last_agreed + 3.0 + 3 * DT
+
+
+def test_headings_back_after_a_loss_start_from_the_prediction() -> None:
+    """Every heading reference lost while the estimate drifted 3°: on their return the fused heading starts at
+    the prediction and moves to them over the blend time, not in one sample (as for position)."""
+    hub, _ = _hub(n_heading=1, switch_blend_s=20.0, readmit_s=5.0)
+    scene = Scene(hub, seed=3)
+    scene.step(50)
+    scene.silent.add("gyro1")
+    scene.step(30)
+    assert hub._out.heading_available is False
+    scene.silent.discard("gyro1")
+    predicted = math.radians(33.0)
+    outputs = []
+    for _ in range(300):
+        scene.t += DT
+        measurements = [Measurement(scene.t, "gyro1", Heading(math.radians(30.0 + 0.05 * scene.rng.standard_normal()))),
+                        Measurement(scene.t, "gnss1", _fix(0.0, 0.0))]
+        out = hub.update(scene.t, measurements, [0.0, 0.0, predicted], [0.3, 0.3, 1e-5])
+        outputs.append(math.degrees(out.y_ned[2]))
+    heading = np.array(outputs)
+    assert abs(heading[0] - 33.0) < 0.3  # starts at the (dead-reckoned) prediction
+    assert np.max(np.abs(np.diff(heading))) < 0.5  # no 3° step
+    assert abs(heading[-1] - 30.0) < 3.0 * math.exp(-(30.0 - 5.0) / 20.0) + 0.3  # fading towards the gyro

@@ -167,3 +167,42 @@ def test_with_two_gyros_the_one_that_drifts_is_rejected_and_the_other_used() -> 
     out = run.step(100)
     assert out.heading_available and run.hub.weight_of("gyro1") == 1.0
     assert abs(math.degrees(ssa(out.y_ned[2] - _truth(run.t)[0]))) < 0.5
+
+
+def test_a_blamed_rate_does_not_carry_the_heading_when_the_gyro_is_lost() -> None:
+    """The rate is off (blamed by the check) when the lone gyro goes silent: the heading is dead-reckoned on the
+    model, not integrated from a rate known to be wrong."""
+    run = Run()
+    run.step(1800)
+    run.rot_offset = (run.t, run.t + 120.0)
+    _until(run, lambda out: run.alarms.is_active(CODE), 20.0)
+    assert run.rot_state() == SensorState.REJECTED.value
+    run.gyros = []
+    out = run.step(20)
+    assert not out.heading_available and out.heading_rate_source is None
+
+
+def test_in_a_turn_larger_than_the_disagreement_neither_is_rejected() -> None:
+    """A lone gyro and a rate sensor with a 5 % scale error: in a 30° turn at 1°/s they disagree by 1.5° (beyond
+    the 1° limit) and the turn is in both, so the share of the gyro's heading change says nothing: neither is
+    rejected, and the alarm says the check cannot tell."""
+    sensors = [SensorConfig("gyro1", SensorKind.HEADING, 10.0, GYRO_SIGMA),
+               SensorConfig("rot1", SensorKind.RATE, 10.0, ROT_SIGMA)]
+    alarms = AlarmRegistry()
+    hub = SensorHub(sensors, HubConfig(), alarms)
+    rng = np.random.default_rng(5)
+    turn = (200.0, 230.0, math.radians(1.0))
+    for k in range(1, 2801):
+        t = k * DT
+        psi, rate = _truth(t)
+        psi += turn[2] * min(max(t - turn[0], 0.0), turn[1] - turn[0])
+        rate += turn[2] if turn[0] <= t < turn[1] else 0.0
+        noise = rng.standard_normal(2)
+        measurements = [Measurement(t, "gyro1", Heading((psi + GYRO_SIGMA * noise[0]) % (2 * math.pi))),
+                        Measurement(t, "rot1", RateOfTurn(1.05 * rate + ROT_BIAS + ROT_SIGMA * noise[1]))]
+        out = hub.update(t, measurements, [0.0, 0.0, psi], [1.0, 1.0, GYRO_SIGMA ** 2])
+        assert out.heading_available and hub.state_of("gyro1") is SensorState.OK
+        rot = next(row["state"] for row in hub.sensor_status(t) if row["name"] == "rot1")
+        assert rot == SensorState.OK.value
+    events = [e for e in alarms.drain_events() if e.code == CODE and e.raised]
+    assert events and "cannot tell" in events[0].text and "neither rejected" in events[0].text

@@ -62,7 +62,8 @@ class Run:
     45°, as the plant's gnss_drift (back at once at t1)."""
 
     def __init__(self, vessel: Vessel, *, seed: int = 1, lever_arm=(30.0, 5.0), velocity: bool = True,
-                 drift: tuple[float, float, float] | None = None, **hub: float) -> None:
+                 drift: tuple[float, float, float] | None = None, freeze: tuple[float, float] | None = None,
+                 **hub: float) -> None:
         sensors = [SensorConfig("gnss1", SensorKind.POSITION, 5.0, GNSS_SIGMA, lever_arm, VELOCITY_SIGMA),
                    SensorConfig("gyro1", SensorKind.HEADING, 10.0, math.radians(0.05))]
         self.alarms = AlarmRegistry()
@@ -71,6 +72,8 @@ class Run:
         self.lever_arm = lever_arm
         self.velocity = velocity
         self.drift = drift
+        self.freeze = freeze  # (t0, t1): the receiver repeats its last position and velocity, as the plant's freeze
+        self._last_gnss: list[Measurement] = []
         self.rng = np.random.default_rng(seed)
         self.t = 0.0
         self.k = 0
@@ -91,7 +94,9 @@ class Run:
             north, east, psi, v_north, v_east, r = self.vessel.at(t)
             measurements = [Measurement(t, "gyro1", Heading((psi + math.radians(0.05) * self.rng.standard_normal())
                                                             % (2 * math.pi)))]
-            if self.k % 2 == 0:  # 5 Hz
+            if self.k % 2 == 0 and self.freeze is not None and self.freeze[0] <= t < self.freeze[1]:
+                measurements += [Measurement(t, m.source, m.message) for m in self._last_gnss]
+            elif self.k % 2 == 0:  # 5 Hz
                 arm_north, arm_east = lever_arm_ned(*self.lever_arm, psi)
                 noise = self.rng.standard_normal(4)
                 e_north, e_east = self.error(t)
@@ -105,6 +110,7 @@ class Run:
                     ve = v_east + a_east + VELOCITY_SIGMA * noise[3]
                     measurements.append(Measurement(t, "gnss1", CourseOverGround(math.atan2(ve, vn) % (2 * math.pi),
                                                                                  math.hypot(vn, ve))))
+                self._last_gnss = measurements[1:]
             self.out = self.hub.update(t, measurements, [north, east, psi], [0.25, 0.25, 1e-6])
             check = self.hub._tracks["gnss1"].velocity  # (the statistic is what is tested)
             assert check is not None
@@ -193,3 +199,16 @@ def test_operator_accepts_the_rejected_receiver() -> None:
     assert run.hub.accept_reference("gnss1")
     run.step(0.2)
     assert not run.alarms.is_active(CODE)
+
+
+def test_a_frozen_receiver_is_the_freeze_tests_not_a_velocity_disagreement() -> None:
+    """A receiver that freezes during a move repeats its position *and* its velocity: the velocity's integral grows
+    while the position stands. The freeze test rejects it; the velocity check restarts and says nothing, and the
+    receiver is back when it reports again."""
+    vessel = Vessel(wave_m=0.3, moves=[(100.0, 200.0, 0.4, 0.2)])
+    run = Run(vessel, freeze=(120.0, 150.0))
+    run.step(145.0)
+    assert run.hub.state_of("gnss1") is SensorState.FROZEN
+    run.step(60.0)
+    assert run.rejected_at is None and not run.alarms.is_active(CODE)
+    assert run.hub.state_of("gnss1") is SensorState.OK and run.out is not None and run.out.position_available

@@ -231,8 +231,8 @@ def test_sea_state_change_is_cross_faded_without_a_jump() -> None:
     across = steps[(times[1:] >= 99.0) & (times[1:] <= 131.0)].max()
     assert across <= 1.2 * max(before, after)
     # outside the fade the output is exactly one field
-    old_field = env._field(0)
-    new_field = env._field(1)
+    old_field = env._fields_of(0)[0]
+    new_field = env._fields_of(1)[0]
     assert env.evaluate(99.9, 0.0, 0.0, 0.0).surge_m == pytest.approx(old_field.evaluate(99.9, 0, 0, 0)[0])
     assert env.evaluate(130.1, 0.0, 0.0, 0.0).surge_m == pytest.approx(new_field.evaluate(130.1, 0, 0, 0)[0])
     assert env.peaks(99.0, 0.0).omega_peak_rad_s == pytest.approx(0.84)

@@ -118,3 +118,41 @@ def test_a_dead_drive_that_returns_dead_is_judged_again_from_its_return() -> Non
     persist = ThrusterMonitorSettings().mismatch_persist_s
     assert removed is not None and persist <= removed - 20.0 <= persist + 3.0
     assert monitor.is_latched("bow")
+
+
+def _drive_feedback(delivered_of, ready_of, seconds: float) -> tuple[list[float], list[bool]]:
+    """A monitor of one drive commanded 50 kN throughout, fed feedback ``delivered_of(t, expected)`` [N] and
+    ``ready_of(t)``: its ``expected_n`` per step and whether the drive was in the allocation."""
+    monitor = ThrusterMonitor([SPEC], ThrusterMonitorSettings(), AlarmRegistry())
+    command = np.full(1, 5e4)
+    expected, available = [], []
+    for k in range(round(seconds / DT)):
+        t = k * DT
+        delivered = delivered_of(t, monitor._health[0].expected_n)
+        monitor.feedback([ThrusterFeedback(SPEC.name, delivered, SPEC.angle_rad, ready_of(t), t)])
+        available.append(bool(monitor.update(t, DT, command)[0]))
+        expected.append(monitor._health[0].expected_n)
+    return expected, available
+
+
+def test_a_mismatch_that_wavers_about_the_limit_is_judged_with_hysteresis() -> None:
+    # From 20 s the drive delivers 25 kN (the limit at 50 kN) ± 40 % short of the expectation, swinging every 4 s:
+    # the low-passed error crosses the limit in every swing and stays above half of it. With hysteresis the
+    # mismatch persists from its first crossing and latches after mismatch_persist_s; judged against the limit
+    # alone it restarts with every swing (2 s above, 2 s below) and never latches.
+    limit = mismatch_limit_n(SPEC.max_thrust_n, 5e4, ThrusterMonitorSettings().mismatch_fraction)
+
+    def short(t: float, expected: float) -> float:
+        return expected - (0.0 if t < 20.0 else limit * (1.0 + 0.4 * math.sin(2.0 * math.pi * t / 4.0)))
+
+    _, available = _drive_feedback(short, lambda t: True, 40.0)
+    first_out = available.index(False) * DT if False in available else None
+    assert first_out is not None and 20.0 + ThrusterMonitorSettings().mismatch_persist_s <= first_out < 30.0
+
+
+def test_a_drive_that_reports_ready_again_is_used_after_readmit_s_not_at_once() -> None:
+    # not ready from 10 s to 15 s (a drive restarting its converter), then ready: back in the allocation readmit_s
+    # (5 s) of ready later, not with its first ready sample
+    _, available = _drive_feedback(lambda t, e: e, lambda t: not 10.0 <= t < 15.0, 30.0)
+    out = [k * DT for k, a in enumerate(available) if not a]
+    assert out[0] == pytest.approx(10.0) and out[-1] == pytest.approx(15.0 + 5.0 - DT)
