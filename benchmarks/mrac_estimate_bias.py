@@ -1,4 +1,4 @@
-"""MRAC mass-estimate bias under combined moves, perfect state, no environment (issue #33).
+"""MRAC mass-estimate bias under combined moves, perfect state, no environment.
 
 The MRAC (:class:`dpcontrol.control.mrac.MracController`, seed 003 eqs. (15)–(25)) is driven by the vessel's
 default guidance (:class:`dpcontrol.guidance.reference_model.ReferenceModel`), as in the runtime, and closes the

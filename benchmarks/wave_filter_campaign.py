@@ -22,8 +22,8 @@ JONSWAP Hs uniform in 0.5–4 m × scale, peak ωp uniform in 0.35–1.3 rad/s /
 relative to the heading; current 0–0.5 m/s × √scale toward a random direction; wind 0–12 m/s × √scale from within
 ±45° of the waves. ``--full-scale-periods`` keeps ωp in 0.35–1.3 rad/s for every vessel (a model in seas of
 full-scale period, where CyberShip II's yaw loop lies inside the wave band); the draws are the same, only ωp
-differs. The plant models one wave system at a time, so a swell plus wind sea is not
-yet drawn (see docs/wave-filter.md).
+differs. ``--swell`` adds a swell to each sea from its own draws (see :func:`random_sea`): the same wind seas,
+currents and winds, with a swell beside them.
 
 The estimators: ``mmae`` with the example's grid when it has one (a vessel of at least 76.2 m; with
 ``--full-scale-periods`` every vessel), else the default grid scaled to the vessel (``DEFAULT_OMEGAS_RAD_S`` ×
@@ -81,21 +81,31 @@ DEFAULT_GRID = [float(w) for w in DEFAULT_OMEGAS_RAD_S]          # at full scale
 FULL_SCALE_PEM = {"omega0_rad_s": 0.8, "rpem_omega_min_rad_s": 0.2, "rpem_omega_max_rad_s": 2.0}
 
 
-def random_sea(vessel: str, seed: int, length_m: float, *, full_scale_periods: bool = False) -> dict[str, Any]:
+def random_sea(vessel: str, seed: int, length_m: float, *, full_scale_periods: bool = False,
+               swell: bool = False) -> dict[str, Any]:
     """The random environment of (vessel, seed), in scenario-file units (degrees).
 
     Froude scaled with ``scale = min(1, L/L_ref)``: heights × scale, speeds × √scale, frequencies / √scale
-    (``full_scale_periods``: frequencies unscaled). The draws do not depend on ``full_scale_periods``.
+    (``full_scale_periods``: frequencies unscaled). The draws do not depend on ``full_scale_periods``. ``swell``:
+    a swell beside the wind sea, from its own stream (the wind sea, current and wind are those drawn without it):
+    Hs 0.5–2.5 m × scale, peak 0.35–0.6 rad/s (Tp 10–18 s at full scale), γ 3–8, from any direction.
     """
     rng = np.random.default_rng([list(VESSELS).index(vessel), seed])
     scale = min(1.0, length_m / REFERENCE_LENGTH_M)
     frequency_scale = 1.0 if full_scale_periods else 1.0 / math.sqrt(scale)
     wave_from = float(rng.uniform(0.0, 360.0))
+    sea: dict[str, Any] = {"t_s": 0, "spectrum": "jonswap", "hs_m": round(float(rng.uniform(0.5, 4.0)) * scale, 4),
+                           "omega_peak_rad_s": round(float(rng.uniform(0.35, 1.3)) * frequency_scale, 4),
+                           "gamma": round(float(rng.uniform(1.0, 5.0)), 2), "direction_deg": round(wave_from, 1),
+                           "fade_s": 1}
+    if swell:
+        swell_rng = np.random.default_rng([list(VESSELS).index(vessel), seed, 1])
+        sea["swell"] = {"hs_m": round(float(swell_rng.uniform(0.5, 2.5)) * scale, 4),
+                        "omega_peak_rad_s": round(float(swell_rng.uniform(0.35, 0.6)) * frequency_scale, 4),
+                        "gamma": round(float(swell_rng.uniform(3.0, 8.0)), 2),
+                        "direction_deg": round(float(swell_rng.uniform(0.0, 360.0)), 1)}
     return {
-        "sea_states": [{"t_s": 0, "spectrum": "jonswap", "hs_m": round(float(rng.uniform(0.5, 4.0)) * scale, 4),
-                        "omega_peak_rad_s": round(float(rng.uniform(0.35, 1.3)) * frequency_scale, 4),
-                        "gamma": round(float(rng.uniform(1.0, 5.0)), 2), "direction_deg": round(wave_from, 1),
-                        "fade_s": 1}],
+        "sea_states": [sea],
         "current": {"speed_mps": round(float(rng.uniform(0.0, 0.5)) * math.sqrt(scale), 4),
                     "direction_deg": round(float(rng.uniform(0.0, 360.0)), 1)},
         "wind": {"speed_mps": round(float(rng.uniform(0.0, 12.0)) * math.sqrt(scale), 3),
@@ -158,9 +168,10 @@ def band_std(x: np.ndarray, dt_s: float, low_rad_s: float, high_rad_s: float) ->
     return float(math.sqrt(float(np.sum(psd[band])) * float(freq_hz[1] - freq_hz[0])))
 
 
-def run_one(vessel: str, seed: int, kind: str, duration_s: float, settle_s: float, *,
+def run_one(vessel: str, seed: int, kind: str, duration_s: float, settle_s: float, *,  # noqa: PLR0913 - one keyword per option of the command line
             options: dict[str, Any] | None = None, control: dict[str, Any] | None = None, former: bool = False,
-            full_scale_periods: bool = False, sensor_noise_scale: float = 1.0) -> dict[str, Any]:
+            full_scale_periods: bool = False, sensor_noise_scale: float = 1.0, swell: bool = False
+            ) -> dict[str, Any]:
     """One run; the measured figures (see the module docstring). ``sensor_noise_scale`` multiplies the white noise
     of the seed scenario's position and heading sensors (and so the filters' R, which follows the sensors)."""
     base = yaml.safe_load((ROOT / "sim_plant" / "scenarios" / VESSELS[vessel][0]).read_text(encoding="utf-8"))
@@ -170,7 +181,7 @@ def run_one(vessel: str, seed: int, kind: str, duration_s: float, settle_s: floa
                                 for key, value in sensor.items()} for sensor in base["sensors"]]
     scenario_map.update(name=f"campaign-{vessel}-{seed}", duration_s=duration_s, seed=1000 + seed,
                         setpoints=[{"t_s": 0, "north_m": 0, "east_m": 0, "heading_deg": 0}],
-                        **random_sea(vessel, seed, length, full_scale_periods=full_scale_periods))
+                        **random_sea(vessel, seed, length, full_scale_periods=full_scale_periods, swell=swell))
     scenario = parse_scenario(scenario_map, file=f"<campaign {vessel} {seed}>")
     estimator = estimator_section(kind, vessel, full_scale_periods=full_scale_periods)
     if former and kind != "raw":
@@ -207,7 +218,7 @@ def run_one(vessel: str, seed: int, kind: str, duration_s: float, settle_s: floa
     tail = omega_hat[int(0.8 * omega_hat.size):]
     return {
         "vessel": vessel, "seed": seed, "estimator": kind,
-        "sea": random_sea(vessel, seed, length, full_scale_periods=full_scale_periods),
+        "sea": random_sea(vessel, seed, length, full_scale_periods=full_scale_periods, swell=swell),
         "full_scale_periods": full_scale_periods, "grid_rad_s": estimator.get("omegas_rad_s"),
         "omega_motion_rad_s": omega_m, "band_rad_s": [low, high],
         "force_wf": math.hypot(bs("tau_x_n"), bs("tau_y_n")), "yaw_wf": bs("tau_n_nm"),
@@ -278,6 +289,8 @@ def main() -> int:
                              "seas of full-scale period)")
     parser.add_argument("--sensor-noise-scale", type=float, default=1.0,
                         help="multiply the position and heading sensors' white noise (is a leak noise or waves?)")
+    parser.add_argument("--swell", action="store_true",
+                        help="a swell beside each wind sea (its own draws; the wind sea, current and wind unchanged)")
     parser.add_argument("--summarise", type=Path, help="only print the summary of a --json file")
     args = parser.parse_args()
     if args.summarise:
@@ -293,7 +306,7 @@ def main() -> int:
             for kind in args.estimators:
                 r = run_one(vessel, seed, kind, args.duration, args.settle, options=args.options, control=args.control,
                             former=args.former_rule, full_scale_periods=args.full_scale_periods,
-                            sensor_noise_scale=args.sensor_noise_scale)
+                            sensor_noise_scale=args.sensor_noise_scale, swell=args.swell)
                 rows.append(r)
                 print(f"{vessel:<15} {seed:>4} {kind:<9} {r['omega_motion_rad_s']:.3f}  {r['omega_hat_rad_s']:.3f}  "
                       f"{r['force_wf']:10.4g}  {r['yaw_wf']:10.4g}  {100 * r['lf_wf_fraction']:5.1f}  "
