@@ -13,6 +13,7 @@ Usage::
     .venv/bin/python benchmarks/example_configs.py supply --control '{"kind": "mrac"}'   # the old supply example
     .venv/bin/python benchmarks/example_configs.py supply --scenario faults/10-thruster-capability.yaml \\
         --duration 119 --control '{"kind": "pid"}'                         # case 10's weather, before the trip
+    .venv/bin/python benchmarks/example_configs.py cybership2 --estimator '{"kind": "mmae"}'   # the default grid
 
 On the 2026-12-03 development VM: supply (PID + bias feed-forward, seed 001 sea) 1.10 m / 1.03° at most; the same
 with ``{"kind": "mrac"}`` 22.1 m / 64.4°, median 10.4 m / 52.7°; tanker (MRAC, first 2700 s: its first 20 m
@@ -65,7 +66,7 @@ def deviation_watch(simulation: LockstepSimulation) -> tuple[Callable[[float, ob
 
 
 def run_example(example: str, scenario_name: str | None = None, duration_s: float | None = None,
-                control: dict[str, Any] | None = None) -> dict[str, Any]:
+                control: dict[str, Any] | None = None, estimator: dict[str, Any] | None = None) -> dict[str, Any]:
     """One example in lockstep; returns the deviations, the alarms and what the run used."""
     config = yaml.safe_load((ROOT / "deploy" / "config" / f"{example}.yaml").read_text(encoding="utf-8"))
     seed_scenario, seed_duration = EXAMPLES[example]
@@ -75,6 +76,8 @@ def run_example(example: str, scenario_name: str | None = None, duration_s: floa
     overrides = {key: config[key] for key in CONTROLLER_SECTIONS if key in config}
     if control is not None:
         overrides["control"] = control
+    if estimator is not None:
+        overrides["estimator"] = estimator
     simulation = build_simulation(scenario, overrides=overrides)
     watch, position, heading = deviation_watch(simulation)
     duration = duration_s if duration_s is not None else (seed_duration if scenario_name is None else None)
@@ -82,6 +85,7 @@ def run_example(example: str, scenario_name: str | None = None, duration_s: floa
     mass = getattr(simulation.controller.controller, "mass_hat_floats", None)
     return {
         "example": example, "scenario": scenario.name, "control": overrides.get("control"),
+        "estimator": overrides.get("estimator"),
         "steps": result.steps, "engaged": bool(result.mode_changes), "watched_steps": len(heading),
         "position_max_m": max(position, default=0.0), "position_median_m": float(np.median(position or [0.0])),
         "heading_max_deg": math.degrees(max(heading, default=0.0)),
@@ -98,12 +102,14 @@ def main() -> int:
     parser.add_argument("--scenario", help="a scenario of sim_plant/scenarios/ (default: the example's seed one)")
     parser.add_argument("--duration", type=float, help="simulated seconds")
     parser.add_argument("--control", type=json.loads, help="a control section replacing the example's (JSON)")
+    parser.add_argument("--estimator", type=json.loads, help="an estimator section replacing the example's (JSON)")
     args = parser.parse_args()
     for example in args.examples or list(EXAMPLES):
-        r = run_example(example, args.scenario, args.duration, args.control)
+        r = run_example(example, args.scenario, args.duration, args.control, args.estimator)
         mass = "" if r["mass_estimates"] is None else \
             "; MRAC mass estimates " + ", ".join(f"{m:.3g}" for m in r["mass_estimates"])
-        print(f"{r['example']:<15} {r['scenario']:<28} control {json.dumps(r['control'])}: position "
+        print(f"{r['example']:<15} {r['scenario']:<28} control {json.dumps(r['control'])}"
+              + (f" estimator {json.dumps(r['estimator'])}" if args.estimator else "") + ": position "
               f"{r['position_max_m']:.2f} m at most ({r['position_median_m']:.2f} median), heading "
               f"{r['heading_max_deg']:.2f}° ({r['heading_median_deg']:.2f}); deviation alarms "
               f"{', '.join(r['deviation_alarms']) or 'none'}{mass}"

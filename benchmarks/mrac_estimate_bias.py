@@ -1,4 +1,4 @@
-"""MRAC mass-estimate bias under combined moves, perfect state, no environment (issue #33).
+"""MRAC mass-estimate bias under combined moves, perfect state, no environment.
 
 The MRAC (:class:`dpcontrol.control.mrac.MracController`, seed 003 eqs. (15)–(25)) is driven by the vessel's
 default guidance (:class:`dpcontrol.guidance.reference_model.ReferenceModel`), as in the runtime, and closes the
@@ -7,7 +7,9 @@ their Coriolis terms, linear and quadratic damping) with
 
 * the plant's true state as the controller's estimate (η̂ = η, ν̂ = ν; no wave filter),
 * no wind, current or waves, no sensor noise (b̂ = 0),
-* the command applied as the plant's force exactly (no allocation, no thruster dynamics: nothing saturates).
+* the command applied as the plant's force exactly (no allocation, no thruster dynamics: nothing saturates), or
+  through a first-order lag of ``command_lag_s`` (``--command-lag``: a stand-in for thruster dynamics and estimator
+  lag, the delay the law sees between the reference's acceleration and the vessel's).
 
 After a rest of ``rest_periods`` reference-model periods (the MRAC's entry rest is one) the set-point alternates
 ``moves`` times between the start pose and the start pose moved by ``0.08 L`` and ``10°`` (the MRAC's design move,
@@ -76,6 +78,8 @@ class BiasRun:
         The MRAC's ``reference`` (:class:`dpcontrol.control.mrac.MracConfig`).
     linear_plant : bool
         Diagnostic: the plant without its quadratic damping (the controller's design model has none).
+    command_lag_s : float
+        Time constant of a first-order lag between the command and the plant's force [s] (0: none).
     override : dict, optional
         :class:`~dpcontrol.control.mrac.MracConfig` fields replaced after the defaults.
     """
@@ -89,6 +93,7 @@ class BiasRun:
     pattern: str = "back"
     reference: str = "model"
     linear_plant: bool = False
+    command_lag_s: float = 0.0
     override: dict[str, Any] | None = None
 
 
@@ -121,6 +126,8 @@ def run(vessel: VesselData, options: BiasRun = BiasRun()) -> dict[str, Any]:
     worst = np.zeros(3)
     peak_error = np.zeros(3)
     zero = np.zeros(3)
+    applied = np.zeros(3)
+    lag = 1.0 - math.exp(-dt / options.command_lag_s) if options.command_lag_s > 0.0 else 1.0
     for k in range(total):
         if next_move < moves and k == schedule[next_move]:
             if pattern == "onward":
@@ -132,7 +139,11 @@ def run(vessel: VesselData, options: BiasRun = BiasRun()) -> dict[str, Any]:
             next_move += 1
         ref = guidance.step(dt, setpoint)
         out = controller.step(dt, x[:3].copy(), x[3:].copy(), zero, ref)
-        tau = out.tau_b
+        if lag < 1.0:
+            applied += lag * (out.tau_b - applied)
+            tau = applied
+        else:
+            tau = out.tau_b
         plant.step(x, dt, float(tau[0]), float(tau[1]), float(tau[2]), 0.0, 0.0)
         ratio = controller.mass_hat / nominal - 1.0
         worst = np.maximum(worst, np.abs(ratio))
@@ -165,6 +176,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--override", default=None, help="JSON object of MracConfig fields")
     parser.add_argument("--linear-plant", action="store_true",
                         help="diagnostic: the plant without its quadratic damping")
+    parser.add_argument("--command-lag", type=float, default=0.0,
+                        help="time constant of a first-order lag of the command [s] (default 0: none)")
     parser.add_argument("--json", action="store_true", help="one JSON object per line")
     args = parser.parse_args(argv)
     override = json.loads(args.override) if args.override else None
@@ -176,7 +189,8 @@ def main(argv: list[str] | None = None) -> int:
         start = time.perf_counter()
         options = BiasRun(kind=args.kind, moves=args.moves, hold_periods=args.hold_periods,
                           steps_per_period=args.steps_per_period, seed=args.seed, pattern=args.pattern,
-                          reference=args.reference, linear_plant=args.linear_plant, override=override)
+                          reference=args.reference, linear_plant=args.linear_plant,
+                          command_lag_s=args.command_lag, override=override)
         result = run(VESSELS[name], options)
         result["seconds"] = round(time.perf_counter() - start, 1)
         if args.json:

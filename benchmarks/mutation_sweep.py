@@ -27,7 +27,8 @@ ROOT = Path(__file__).resolve().parents[1]
 HUB = "dpcontrol/runtime/hub.py"
 MON = "dpcontrol/runtime/thruster_monitor.py"
 TESTS = ["tests/unit/test_hub.py", "tests/unit/test_hub_rate_check.py", "tests/unit/test_hub_rate_of_turn.py",
-         "tests/unit/test_hub_velocity_check.py", "tests/unit/test_thruster_monitor_failsafe.py",
+         "tests/unit/test_hub_velocity_check.py", "tests/unit/test_hub_noisy_reference.py",
+         "tests/unit/test_thruster_monitor_failsafe.py",
          "tests/unit/test_runtime_fast_paths.py", "tests/unit/test_allocation_kernels.py"]
 #: (what is removed, file, the code as it is, the code without the behaviour)
 MUTANTS: list[tuple[str, str, str, str]] = [
@@ -69,6 +70,9 @@ MUTANTS: list[tuple[str, str, str, str]] = [
  ("rate bias not subtracted in dead reckoning", HUB, "            self._dr_heading += (source.value - source.bias) * dt", "            self._dr_heading += source.value * dt"),
  ("dead reckoning starts from the drifted gyro", HUB, "                self._dr_heading = ssa(check.previous - check.disagreement)", "                self._dr_heading = check.previous"),
  ("a blamed rate still carries the heading", HUB, "            if source is None and rate.bias_time_s > 0.0 and not rate.blamed:", "            if source is None and rate.bias_time_s > 0.0:"),
+ ("noisy receiver not de-weighted", HUB, "        if pos_new and excess > 0.0:\n", "        if False:\n"),
+ ("noisy receiver judged on its configured noise", HUB, "                if track.recent_variance is not None:  # (a receiver whose noise just grew: its recent noise)", "                if False:"),
+ ("noisy receiver taken back without the fade", HUB, "                if self._position_used and self._position_lost_since is None:\n                    self._position_anchor_samples = 0", "                if False:\n                    self._position_anchor_samples = 0"),
 ]
 
 

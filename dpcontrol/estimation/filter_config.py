@@ -59,6 +59,14 @@ damping matrices, so one rule serves a 1.3 m model (CyberShip II) and a 260 m ta
   (stationary standard deviation σ_b). Surge and sway share one value so the model is invariant
   to the vessel-parallel rotation.
 * Measurement noise: ``σ_pos = 0.002·L`` (GNSS/DGNSS at full scale), heading 0.1° (gyro).
+* Wave frequencies: the MMAE bank (seed 000's eight models, 0.3–1.35 rad/s), the single-model kinds' ω0
+  (0.8 rad/s) and the PEM/RPEM ω0 range (0.2–2 rad/s) are full-scale seas' (seed 000 "from calm and glassy to
+  very high and phenomenal"; seed 001 Table I, the sea states of a supply vessel, and its bank {0.56, 0.73, 0.80}
+  rad/s). For a hull shorter than the reference ``L_ref = 76.2 m`` (seed 001's supply vessel) they are Froude
+  scaled, ``ω·√(L_ref/L)`` (:func:`wave_frequency_scale`): such a hull is taken for a model meeting its basin's
+  seas, Froude scaled like its own time scale (CyberShip II, L = 1.255 m: × 7.8, bank 2.3–10.5 rad/s; the Blue
+  Lady, 13.75 m: × 2.35). A longer hull meets the reference's ocean: unchanged. A configuration's own grid,
+  ω0 or range is kept; a small vessel at sea (not a model) must give its own.
 * MMAE weights: discrete Bayes with forgetting time T_f = 600 s and a relative floor of 10⁻⁶, fed
   with the band-limited, locally whitened and tempered likelihood (``likelihood_scale="band"``):
   prefilter band ``[ω_1/2, 1.5·ω_N]``, short-window statistics over two periods of the lowest model
@@ -88,7 +96,63 @@ WF_FRAMES = ("body", "earth")
 WF_NOISE_RULES = ("equal_intensity", "equal_variance")
 WEIGHTINGS = ("dwsg", "bayes")
 LIKELIHOOD_SCALES = ("band", "common", "own")
-DEFAULT_OMEGAS_RAD_S = (0.3, 0.45, 0.6, 0.75, 0.9, 1.05, 1.2, 1.35)
+#: Length for which the default wave frequencies are stated [m]: the supply vessel of seed 001, whose sea states
+#: (its Table I, peak ω0 0.45–0.85 rad/s) and bank {0.56, 0.73, 0.80} rad/s are full-scale ones.
+REFERENCE_LENGTH_M = 76.2
+
+
+def wave_frequency_scale(length_m: float) -> float:
+    """Froude factor of the default wave frequencies for a vessel of length L [-].
+
+    ``s = √(max(1, L_ref/L))`` with ``L_ref`` = :data:`REFERENCE_LENGTH_M`. A hull shorter than the reference is
+    taken for a model of a full-scale vessel at the scale λ = L_ref/L: Froude similitude keeps ``ω²L/g``, so a
+    sea met at full scale at ω meets the model at ``ω·√λ`` (wave lengths ``2πg/ω²`` scale with λ like the hull).
+    A longer hull meets the same ocean as the reference (waves do not grow with the ship): s = 1.
+
+    Parameters
+    ----------
+    length_m : float
+        Vessel length L [m], > 0.
+
+    Returns
+    -------
+    float
+        ``s`` ≥ 1.
+    """
+    return math.sqrt(max(1.0, REFERENCE_LENGTH_M / length_m))
+
+
+class LengthScaledGrid(tuple[float, ...]):
+    """Wave frequencies stated at :data:`REFERENCE_LENGTH_M` [rad/s]; :class:`WaveFilterConfig` multiplies them
+    by :func:`wave_frequency_scale` of its vessel. A plain tuple (a configuration's own grid) is kept as given."""
+
+    __slots__ = ()
+
+    def __format__(self, spec: str) -> str:
+        values = ", ".join(f"{w:g}" for w in self)
+        return f"[{values}] × √(max(1, {REFERENCE_LENGTH_M:g} m/L))"
+
+    def __str__(self) -> str:
+        return format(self, "")
+
+
+class LengthScaledFrequency(float):
+    """One wave frequency stated at :data:`REFERENCE_LENGTH_M` [rad/s], scaled like :class:`LengthScaledGrid`."""
+
+    __slots__ = ()
+
+    def __format__(self, spec: str) -> str:
+        return f"{float(self):g} × √(max(1, {REFERENCE_LENGTH_M:g} m/L))"
+
+    def __str__(self) -> str:
+        return format(self, "")
+
+
+#: MMAE bank of seed 000 (its sea states "from calm and glassy to very high and phenomenal", peak 0.25–1.4 rad/s,
+#: full-scale), scaled to the vessel (:func:`wave_frequency_scale`) unless a configuration gives its own grid
+DEFAULT_OMEGAS_RAD_S = LengthScaledGrid((0.3, 0.45, 0.6, 0.75, 0.9, 1.05, 1.2, 1.35))
+#: initial / fixed ω0 of the single-model kinds (kf, rpem, pem) when none is given, scaled the same way
+DEFAULT_OMEGA0_RAD_S = LengthScaledFrequency(0.8)
 
 _GRAVITY_MPS2 = 9.81
 _RHO_KGPM3 = 1025.0
@@ -123,6 +187,8 @@ class WaveFilterConfig:
         LF model without wave states (wave filter off, seed 002 Fig. 7).
     omegas_rad_s : tuple of float
         mmae: the bank's peak frequencies; kf: one value; rpem, pem: the initial ω0; raw: ignored [rad/s].
+        Default :data:`DEFAULT_OMEGAS_RAD_S` × :func:`wave_frequency_scale` (a :class:`LengthScaledGrid` is
+        scaled to the vessel in ``__post_init__``; a plain tuple is kept).
     zeta : float
         WF relative damping ζ of every model [-].
     bias_time_constants_s : (Tx, Ty, Tψ) or None
@@ -180,7 +246,8 @@ class WaveFilterConfig:
     rpem_forgetting : float
         λ of seed 003 eqs. (11)–(12) (0.996 in the paper).
     rpem_omega_min_rad_s, rpem_omega_max_rad_s : float
-        Projection range of the RPEM ω0 estimate [rad/s].
+        Projection range of the RPEM ω0 estimate and search range of PEM's [rad/s] (default 0.2 and 2.0 rad/s ×
+        :func:`wave_frequency_scale`, the upper one at most π/(2Δt)).
     rpem_initial_variance : float or None
         Initial P of the RPEM recursion [(rad/s)²] (None: (0.3·ω0)²·(1 − λ_rpem)).
     pem_interval_s : float
@@ -231,8 +298,8 @@ class WaveFilterConfig:
     weight_floor: float = 1e-6
     time_varying: bool = False
     rpem_forgetting: float = 0.996
-    rpem_omega_min_rad_s: float = 0.2
-    rpem_omega_max_rad_s: float = 2.0
+    rpem_omega_min_rad_s: float = LengthScaledFrequency(0.2)
+    rpem_omega_max_rad_s: float = LengthScaledFrequency(2.0)
     rpem_initial_variance: float | None = None
     pem_interval_s: float = 1200.0
     pem_window_s: float = 1200.0
@@ -260,6 +327,7 @@ class WaveFilterConfig:
         check_number(self.sample_time_s, "sample_time_s", minimum=0.0, exclusive_minimum=True)
         if self.kind not in KINDS:
             raise ConfigError("kind", "one of " + ", ".join(KINDS), self.kind)
+        self._scale_default_frequencies()
         omegas = _tuple_of(self.omegas_rad_s, None, "omegas_rad_s", positive=True)
         object.__setattr__(self, "omegas_rad_s", omegas)
         needed = {"mmae": 1, "kf": 1, "rpem": 1, "pem": 1, "raw": 0}[self.kind]
@@ -338,12 +406,25 @@ class WaveFilterConfig:
         check_number(self.pem_zeta_max, "pem_zeta_max", minimum=self.pem_zeta_min, exclusive_minimum=True,
                      maximum=0.95)
         check_number(self.pem_wf_std_floor, "pem_wf_std_floor", minimum=0.0, exclusive_minimum=True, maximum=1.0)
-        if self.kind == "pem" and not self.rpem_omega_min_rad_s <= omegas[0] <= self.rpem_omega_max_rad_s:
+        if self.kind in ("pem", "rpem") and not self.rpem_omega_min_rad_s <= omegas[0] <= self.rpem_omega_max_rad_s:
             raise ConfigError("omegas_rad_s", f"an initial ω0 in [{self.rpem_omega_min_rad_s:g}, "
                               f"{self.rpem_omega_max_rad_s:g}] rad/s", omegas[0])
-        if self.kind == "rpem" and not self.rpem_omega_min_rad_s <= omegas[0] <= self.rpem_omega_max_rad_s:
-            raise ConfigError("omegas_rad_s", f"an initial ω0 in [{self.rpem_omega_min_rad_s:g}, "
-                              f"{self.rpem_omega_max_rad_s:g}] rad/s", omegas[0])
+
+    def _scale_default_frequencies(self) -> None:
+        """Replace the default wave frequencies (:class:`LengthScaledGrid`, :class:`LengthScaledFrequency`) by
+        their values for this vessel, ``ω·√(max(1, L_ref/L))`` (:func:`wave_frequency_scale`); the default upper
+        bound of the ω0 search is kept at π/(2Δt) (four samples a period, where the discretised model still
+        holds). Given values are kept."""
+        if self.length_m is not None:
+            check_number(self.length_m, "length_m", minimum=0.0, exclusive_minimum=True)
+        scale = wave_frequency_scale(self.length_scale_m)
+        if isinstance(self.omegas_rad_s, LengthScaledGrid):
+            object.__setattr__(self, "omegas_rad_s", tuple(scale * w for w in self.omegas_rad_s))
+        if isinstance(self.rpem_omega_min_rad_s, LengthScaledFrequency):
+            object.__setattr__(self, "rpem_omega_min_rad_s", scale * float(self.rpem_omega_min_rad_s))
+        if isinstance(self.rpem_omega_max_rad_s, LengthScaledFrequency):
+            highest = 0.5 * math.pi / float(self.sample_time_s)
+            object.__setattr__(self, "rpem_omega_max_rad_s", min(scale * float(self.rpem_omega_max_rad_s), highest))
 
     # ----------------------------------------------------------------------------------------
     # Derived tuning (module docstring)
@@ -475,6 +556,7 @@ class WaveFilterConfig:
             Control period [s].
         kind : str
         omegas_rad_s : sequence of float
+            [rad/s]; a :class:`LengthScaledGrid` (the default) is scaled to the vessel, anything else kept.
         zeta : float
         options : mapping, optional
             Any other field of this class by name (YAML scalars/lists); unknown keys are rejected.
@@ -506,7 +588,9 @@ class WaveFilterConfig:
         section.finish(also_valid=known | set(section_keys))
         try:
             return WaveFilterConfig(mass_matrix=mass_matrix, damping_matrix=damping_matrix,
-                                    sample_time_s=sample_time_s, kind=kind, omegas_rad_s=tuple(omegas_rad_s),
+                                    sample_time_s=sample_time_s, kind=kind,
+                                    omegas_rad_s=omegas_rad_s if isinstance(omegas_rad_s, LengthScaledGrid)
+                                    else tuple(omegas_rad_s),
                                     zeta=zeta, **values)
         except ConfigError as error:
             raise ConfigError(join(path, error.path), error.expected, error.got, show_got=error.show_got) from None

@@ -22,7 +22,9 @@ their 3×3 sample covariance, minimised over (log ω0, ζ, reflection coefficien
 The data are the measured position (body axes: the WF model of seed 001 eq. (34) is body-fixed) and heading
 minus the running filter's LF estimate — the detrending of the paper, by the LF model instead of a first-order
 high-pass — low-pass filtered and decimated to ≈ 0.5 s (:func:`scipy.signal.decimate`, zero phase), so a
-20-min record is ≈ 2400 samples whatever the control rate.
+20-min record is ≈ 2400 samples whatever the control rate; to ≈ π/(2·ω_max) instead when the search range's
+upper end ω_max lies above π rad/s (a model's Froude-scaled seas: CyberShip II's default range ends at 15.6 rad/s,
+so its record keeps the 0.1 s control period).
 
 :class:`PemWaveFilter` (``kind="pem"``) is the steady-state Kalman filter of
 :class:`~dpcontrol.estimation.wave_filter.BankWaveFilter` at the current (ω̂0, ζ̂, σ̂_wf), rebuilt after each
@@ -44,7 +46,8 @@ from dpbase.frames import ssa
 from dpcontrol.estimation.filter_config import WaveFilterConfig
 from dpcontrol.estimation.wave_filter import BankWaveFilter, WaveFilterOutput
 
-#: target sample time of the identification data [s] (wave periods ≥ 3 s: ≥ 6 samples a period)
+#: target sample time of the identification data [s] (wave periods ≥ 3 s: ≥ 6 samples a period), shortened to
+#: π/(2·ω_max) when the ω0 search range reaches higher (a model's Froude-scaled seas)
 IDENTIFICATION_SAMPLE_TIME_S = 0.5
 _MIN_SAMPLES = 256
 
@@ -104,7 +107,7 @@ def identify_wave_model(residual: np.ndarray, sample_time_s: float, *, omega_ran
     sample_time_s : float
         Sample time of ``residual`` [s].
     omega_range_rad_s : (float, float)
-        Search range of ω0 [rad/s].
+        Search range of ω0 [rad/s]; the data are decimated to ≈ min(0.5 s, π/(2·ω_max)), ω_max its upper end.
     zeta_range : (float, float)
         Search range of ζ [-].
     noise_var : ndarray, shape (3,), optional
@@ -121,7 +124,9 @@ def identify_wave_model(residual: np.ndarray, sample_time_s: float, *, omega_ran
     data = np.asarray(residual, dtype=float)
     if data.ndim != 2 or data.shape[1] != 3:
         raise ValueError(f"residual must have shape (N, 3), got {data.shape}")
-    factor = max(1, round(IDENTIFICATION_SAMPLE_TIME_S / sample_time_s))
+    # at least four samples a period of the highest frequency searched (a model's seas peak at up to 10 rad/s)
+    target = min(IDENTIFICATION_SAMPLE_TIME_S, 0.5 * math.pi / omega_range_rad_s[1])
+    factor = max(1, round(target / sample_time_s))
     h = factor * sample_time_s
     channels: list[int] = []
     series: list[np.ndarray] = []

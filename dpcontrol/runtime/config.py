@@ -21,7 +21,7 @@ from dpcontrol.allocation.allocator import allocator_kwargs_from_mapping
 from dpcontrol.allocation.consequence import FailureGroup
 from dpcontrol.control import CONTROL_KINDS, ControlConfig, DefaultControl, control_config_from_mapping, default_control
 from dpcontrol.estimation import WaveFilterConfig
-from dpcontrol.estimation.filter_config import DEFAULT_OMEGAS_RAD_S
+from dpcontrol.estimation.filter_config import DEFAULT_OMEGA0_RAD_S, DEFAULT_OMEGAS_RAD_S, LengthScaledGrid
 from dpcontrol.guidance import ReferenceModelConfig, reference_config_from_mapping
 from dpcontrol.models.vessels import BUILTIN_VESSELS, VesselData, vessel_from_config
 from dpcontrol.runtime.consequence import ConsequenceSettings
@@ -412,16 +412,20 @@ def _parse_estimator(section: Section, vessel: VesselData, rate_hz: float,
         single_key = "omega_rad_s"  # (read under the name the file gives, so that an error names it)
         notices.append(f"{join(section.path, 'omega_rad_s')} is deprecated: write omega0_rad_s (read as it in this "
                        "release)")
+    # without a frequency key the default, stated at full scale, is scaled to the vessel by the filter's config
+    frequencies = Section.of(options, section.path)
     omegas: tuple[float, ...]
     if kind == "mmae":
-        omegas = tuple(float(v) for v in Section.of(options, section.path).vector(
-            "omegas_rad_s", None, list(DEFAULT_OMEGAS_RAD_S)))
+        grid = frequencies.vector("omegas_rad_s", None, DEFAULT_OMEGAS_RAD_S)
+        omegas = tuple(float(v) for v in grid) if "omegas_rad_s" in options else DEFAULT_OMEGAS_RAD_S
     elif kind in ("kf", "rpem", "pem"):
-        omegas = (Section.of(options, section.path).number(single_key, 0.8),)
+        omega0 = frequencies.number(single_key, DEFAULT_OMEGA0_RAD_S)
+        omegas = (omega0,) if single_key in options else LengthScaledGrid((DEFAULT_OMEGA0_RAD_S,))
     else:
         omegas = ()
     omega_key = "omegas_rad_s" if kind == "mmae" else single_key
-    for i, omega in enumerate(omegas):
+    given = omega_key in options
+    for i, omega in enumerate(omegas if given else ()):
         _wave_frequency(omega, f"{section.path}.{omega_key}" + (f"[{i}]" if kind == "mmae" else ""), rate_hz)
     zeta = options.get("zeta", 0.1)
     extra = {k: v for k, v in options.items() if k not in (omega_key, "zeta")}  # (another kind's key: refused below)
@@ -437,6 +441,10 @@ def _parse_estimator(section: Section, vessel: VesselData, rate_hz: float,
         vessel.mass_matrix, vessel.damping_matrix, 1.0 / rate_hz, kind=kind, omegas_rad_s=omegas or (0.8,),
         zeta=zeta, options=extra, length_m=vessel.length_m, path=section.path,
         section_keys=(omega_key, "zeta") if omegas else ("zeta",))
+    if omegas and not given:   # the default, scaled to this vessel: within what the sampling can model?
+        for omega in wave_filter.omegas_rad_s:
+            _wave_frequency(omega, f"{section.path}.{omega_key} (the default for a {wave_filter.length_scale_m:g} m "
+                            f"vessel, {omegas} rad/s: give it)", rate_hz)
     return EstimatorSettings(kind, wave_filter, {}, tuple(notices))
 
 

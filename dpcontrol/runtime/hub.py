@@ -86,12 +86,35 @@ the rate taken back, the alarm cleared — when every gyro compared has kept |D|
 ``rot_check_return_s`` (10 s): after a drift that stops, a window later. Without a valid rate sensor (stale,
 frozen, bias not yet learnt) nothing is compared and a verdict ends.
 
+**Noisy position references.** The variance test weighs references against each other; a lone receiver (or all of
+them at once) whose noise grows has nothing to be weighed against, and the estimator, whose steady-state gains are
+tuned for the configured noise, would take it as it comes. Each position reference's *recent noise* is measured from
+its own samples, independently of the estimator (whose feedback makes the residuals about its prediction look noisier
+than the receiver is): the second divided difference of three consecutive samples, d = Δ₁/h₁ − Δ₂/h₂ per axis, is
+zero for any constant velocity, offset or drift (a jump makes two large values) and σ²·(1/h₁² + (1/h₁ + 1/h₂)² +
+1/h₂²) for white noise σ; the median of the normalised (d_n² + d_e²)/2 over the last ``noise_window_s`` (3 s, at
+least 15 samples), divided by ln 2 (the median of χ²₂/2), is its variance. Every new sample counts, the ones the
+prediction test rejects too, so that the median follows the noise up and down within half a window (1.5–2 s at
+10 Hz). The noise of a reference is the larger of that and its GST's; ΔR = Σ w_i²·max(σ_i² − (κ·σ_cfg,i)², 0) over the
+references in use (w_i their share in the fused value, σ_cfg,i the configured 1-σ, κ = ``noise_deweight_factor``, 3,
+above what healthy receivers reach in this measure: docs/fault-handling.md). With ΔR > 0 the fused position is
+fed as ŷ + S'/(S' + ΔR)·(y − ŷ), the Kalman update with R + ΔR, where S' = S + G and G is the prediction's variance
+grown while de-weighted as in dead reckoning (√G at ``dead_reckoning_drift_mps``, each de-weighted update taking its
+share off): a long noise lets the receiver back in by degrees instead of dead-reckoning on. The prediction test judges
+a sample with the recent noise when that is larger. ``position.noisy_reference`` (warning) is raised while the gain
+is below half its own (naming the receiver, its noise and the configured one) and clears when ΔR is 0 again: the
+receiver is then taken back as after a loss, from the estimator's prediction, the error of the de-weighted time
+measured over ``readmit_s`` and faded out over ``switch_blend_s``, so that the thrust does not step. Headings are not
+de-weighted: a gyro's residuals hold the wave filter's yaw prediction error, well above its configured noise, and the
+plant injects no heading noise to measure a rule on.
+
 The hub is pure: time is the ``t_s`` argument; no clock, no I/O.
 """
 
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Iterable, Sequence
 from dataclasses import InitVar, dataclass, field
 from enum import Enum
@@ -133,6 +156,12 @@ class SensorState(str, Enum):
 _ALARM_STATES = frozenset({SensorState.STALE, SensorState.FROZEN, SensorState.REJECTED,
                            SensorState.DISCONNECTED})
 _HEALTHY_STATES = (SensorState.OK, SensorState.ISOLATED)  # fused, or voted out by the median test only
+# The recent noise of a position reference (module docstring, "Noisy position references"): a median of fewer samples
+# is too loose (a healthy receiver would be found noisy now and then); the median of the per-sample variance estimate
+# (d_n² + d_e²)/12 = σ²·χ²₂/2 over its mean: ln 2
+_RECENT_MIN_SAMPLES = 15
+
+_MEDIAN_CHI2_2 = math.log(2.0)
 _MAX_SPEED_MPS = 100.0  # a speed over ground beyond this is no ship's (interfaces.limits allows more)
 
 
@@ -212,6 +241,11 @@ class HubConfig:
     velocity_check_min_m: float = 1.0
     velocity_check_filter_s: float = 2.0
     velocity_check_return_s: float = 5.0
+    # The noise of the references in use against their configured one (module docstring, "Noisy position references"):
+    # the window of the recent noise estimate [s] (at least 15 samples), the factor on the configured 1-σ above
+    # which the excess variance is taken off the estimator's gain [-]
+    noise_window_s: float = 3.0
+    noise_deweight_factor: float = 3.0
 
 
 @dataclass(eq=False, slots=True)
@@ -255,6 +289,12 @@ class _SensorTrack:
     gst_valid_s: float = field(init=False, default=0.0)  # 3 × stale_periods × period: GST still current [s]
     continuity_s: float = field(init=False, default=0.0)  # 2.5 × period: residuals consecutive [s]
     variance_alpha: float = field(init=False, default=0.0)  # EWMA weight of the variance test [-]
+    # a position reference's per-sample noise variances over the last noise_window_s (the recent noise)
+    recent: deque[float] = field(init=False, default_factory=deque)
+    recent_min: int = field(init=False, default=0)  # samples the recent noise needs before it counts
+    recent_variance: float | None = None  # the recent noise variance [m²] (None: too few samples yet)
+    # the last two accepted position samples (time [s], NED [m]), for the recent noise's second differences
+    recent_previous: tuple[float, tuple[float, float], tuple[float, tuple[float, float]] | None] | None = None
     # the other references of its kind, in the configured order (the variance test's comparison)
     peers: list[_SensorTrack] = field(init=False, default_factory=list)
     rate: _RateSource | None = field(init=False, default=None)  # a heading sensor's own rate of turn
@@ -273,6 +313,9 @@ class _SensorTrack:
         self.gst_valid_s = 3.0 * limits.stale_periods * period
         self.continuity_s = 2.5 * period
         self.variance_alpha = min(1.0, period / limits.variance_time_constant_s)
+        size = max(_RECENT_MIN_SAMPLES, math.ceil(limits.noise_window_s * config.nominal_rate_hz))
+        self.recent = deque(maxlen=size)
+        self.recent_min = (size + 1) // 2
 
 
 @dataclass(eq=False, slots=True)
@@ -579,6 +622,9 @@ class HubOutput:
         Every reference of that kind has failed the prediction test for ``reject_persist_s``: the
         references agree with each other, so the *estimate* is wrong (e.g. after long dead
         reckoning). The hub accepted them again; the caller re-initialises the estimator there.
+    position_noise_weight : float
+        The share S'/(S' + ΔR) of the estimator's gain the fused position is given, ΔR the noise of the receivers
+        in use beyond their configured one [-] (1: not de-weighted; module docstring, "Noisy position references").
     """
 
     y_ned: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
@@ -595,6 +641,7 @@ class HubOutput:
     position_dr_sigma_m: float = 0.0
     position_reset: bool = False
     heading_reset: bool = False
+    position_noise_weight: float = 1.0
 
 
 class SensorHub:
@@ -687,6 +734,8 @@ class SensorHub:
         self._accept_requested: set[str] = set()  # references the operator accepted (accept_reference)
         self._base_variance: Sequence[float] | None = None  # this update's prediction variance before any growth
         self._lone_alarms: set[str] = set()  # <kind>.reference_rejected raised (see _lone_accepted)
+        self._noise_alarm = False  # position.noisy_reference raised (see _noise_weights)
+        self._noise_growth = 0.0  # the prediction's variance grown while the position is de-weighted [m²]
         self._freeze_limit_s = config.freeze_window_s - 1e-9
         # A rate is frozen no later than a heading sent with it: a gyro's own ROT that froze with its heading is
         # never integrated past the moment the heading is declared frozen (CyberShip II's Froude-scaled window,
@@ -776,6 +825,12 @@ class SensorHub:
                                       healthy_position)
         head_new = self._fuse_heading(t_s, None if out.heading_reset else predicted_y_ned, healthy_heading)
         out.measured = (pos_new, pos_new, head_new)
+        if predicted_y_ned is not None and self._base_variance is not None and not out.position_reset:
+            self._noise_weights(t_s, dt, predicted_y_ned, self._base_variance, pos_new)
+        elif self._noise_alarm:
+            self._noise_alarm = False
+            self._noise_growth = 0.0
+            self.alarms.clear(t_s, "position.noisy_reference")
         if self._velocity_seen:
             self._velocity_dead_reckoning(t_s, predicted_y_ned)
         out.yaw_rate_radps = self._yaw_rate
@@ -1342,6 +1397,8 @@ class SensorHub:
         else:
             track.frozen_since_t_s = None
         frozen_since = track.frozen_since_t_s
+        if frozen_since is None and not heading:  # (every new position sample, rejected ones too)
+            _recent_noise(track, t_s, value)
         if frozen_since is not None and t_s - frozen_since >= self._freeze_limit_s:
             track.rejected_samples += 1
             track.detail = f"identical values for {t_s - frozen_since:.1f} s"
@@ -1369,6 +1426,8 @@ class SensorHub:
                 offset = self._position_offset
                 r0 = v0 + offset[0] - predicted[0]
                 r1 = v1 + offset[1] - predicted[1]
+                if track.recent_variance is not None:  # (a receiver whose noise just grew: its recent noise)
+                    sigma = math.sqrt(max(track.recent_variance, sigma * sigma))
                 limit = max(cfg.jump_min_m,
                             cfg.jump_sigma_factor * math.sqrt(0.5 * (variance[0] + variance[1]) + sigma * sigma))
                 distance = math.hypot(r0, r1)
@@ -1461,6 +1520,9 @@ class SensorHub:
             track.rejecting_since_t_s = None
             track.residual_variance = None
             track.variance_samples = 0
+            track.recent.clear()
+            track.recent_variance = None
+            track.recent_previous = None
             track.previous_residual = track.previous_residual2 = None
             track.accepted_value = track.value
             track.last_accepted_t_s = track.last_t_s
@@ -1769,6 +1831,89 @@ class SensorHub:
         self._out.y_ned[2] = fused
         return fresh
 
+    def _noise_weights(self, t_s: float, dt: float, predicted: Sequence[float], innovation: Sequence[float],
+                       pos_new: bool) -> None:
+        """The fused position of this step de-weighted by the noise of the receivers in use beyond their configured
+        one (module docstring, "Noisy position references"): ŷ + S'/(S' + ΔR)·(y − ŷ), S' the innovation variance
+        with the prediction's growth while de-weighted; ``position.noisy_reference`` while the gain is below half
+        its own, and a bumpless return when it is whole again.
+
+        Parameters
+        ----------
+        t_s : float
+            Current time [s].
+        dt : float
+            Time since the last update [s].
+        predicted : sequence of 3 floats
+            The estimator's predicted measurement [north_m, east_m, psi_rad].
+        innovation : sequence of 3 floats
+            Its innovation variances S, not grown by dead reckoning [m², m², rad²].
+        pos_new : bool
+            Whether this step carries a new position measurement.
+        """
+        out = self._out
+        excess, worst = self._noise_excess(self._position_used)
+        growth = self._noise_growth
+        if excess > 0.0:  # the prediction's error grows as in dead reckoning, while the receiver is heard less
+            sd = math.sqrt(growth) + self.config.dead_reckoning_drift_mps * dt
+            growth = sd * sd
+        else:
+            growth = 0.0
+        weight_north = _update_weight(innovation[0] + growth, excess)
+        weight_east = _update_weight(innovation[1] + growth, excess)
+        if pos_new and excess > 0.0:
+            y_ned = out.y_ned
+            y_ned[0] = predicted[0] + weight_north * (y_ned[0] - predicted[0])
+            y_ned[1] = predicted[1] + weight_east * (y_ned[1] - predicted[1])
+            growth *= 1.0 - 0.5 * (weight_north + weight_east)  # (what the de-weighted update takes off it)
+        self._noise_growth = growth
+        weight = out.position_noise_weight = min(weight_north, weight_east)
+        code = "position.noisy_reference"
+        if self._noise_alarm:
+            if excess <= 0.0:  # taken back: from the prediction, the error of the de-weighted time faded out
+                self._noise_alarm = False
+                self.alarms.clear(t_s, code)
+                if self._position_used and self._position_lost_since is None:
+                    self._position_anchor_samples = 0
+                    self._position_anchor_until_t_s = t_s + self.config.readmit_s
+            return
+        if weight >= 0.5 or worst is None:
+            return
+        self._noise_alarm = True
+        self.alarms.raise_(t_s, code, Severity.WARNING,
+                           f"{worst.name}: noise {math.sqrt(self._noise_variance(worst)):.3g} m (GST or the last "
+                           f"{self.config.noise_window_s:g} s) against {worst.config.sigma:.3g} m configured; fed to "
+                           f"the estimator at {weight:.0%} of its gain")
+
+    def _noise_variance(self, track: _SensorTrack) -> float:
+        """A position reference's noise variance now: the larger of its recent measured one and its GST's [m²]
+        (0 when neither is known)."""
+        recent = track.recent_variance or 0.0
+        gst, gst_t_s = track.gst_sigma, track.gst_t_s
+        if gst is not None and gst_t_s is not None and track.last_t_s is not None and \
+                track.last_t_s - gst_t_s <= track.gst_valid_s:
+            return max(recent, gst * gst)
+        return recent
+
+    def _noise_excess(self, tracks: list[_SensorTrack]) -> tuple[float, _SensorTrack | None]:
+        """ΔR = Σ w_i²·max(σ²_i − (κ·σ_cfg,i)², 0) over the position references in use (w_i their share in the fused
+        value, σ²_i their noise now (:meth:`_noise_variance`), σ_cfg,i the configured 1-σ, κ =
+        ``noise_deweight_factor``) [m²], and the reference with the largest term (None when ΔR is 0)."""
+        factor = self.config.noise_deweight_factor
+        excess = 0.0
+        worst: _SensorTrack | None = None
+        largest = 0.0
+        for track in tracks:
+            floor = factor * track.config.sigma
+            term = self._noise_variance(track) - floor * floor
+            if term > 0.0:
+                term *= track.weight * track.weight
+                excess += term
+                if term > largest:
+                    largest = term
+                    worst = track
+        return excess, worst
+
     def _availability(self, t_s: float) -> None:
         """At least one reference of each kind in use, and for how long none has been [s]."""
         out = self._out
@@ -1817,6 +1962,35 @@ class SensorHub:
 
     def weight_of(self, name: str) -> float:
         return self._tracks[name].weight
+
+
+def _recent_noise(track: _SensorTrack, t_s: float, value: tuple[float, float]) -> None:
+    """A new position sample ``value`` (NED [m]) at ``t_s`` [s] into the recent noise of its reference (module
+    docstring, "Noisy position references"): the second divided difference of three consecutive samples,
+    d = Δ₁/h₁ − Δ₂/h₂, is σ²·c per axis with c = 1/h₁² + (1/h₁ + 1/h₂)² + 1/h₂² for white noise σ, and 0 for any
+    constant velocity, offset or drift (a jump makes two large ones, which the median ignores); (d_n² + d_e²)/(2c) is
+    σ²·χ²₂/2, whose median over the window divided by ln 2 is the recent noise variance [m²], once the window is
+    half full."""
+    previous = track.recent_previous
+    if previous is None or not 0.0 < t_s - previous[0] <= track.continuity_s:  # (a gap: the differences restart)
+        track.recent_previous = (t_s, value, None)
+        return
+    t1, v1, before = previous
+    track.recent_previous = (t_s, value, (t1, v1))
+    if before is None:
+        return
+    t2, v2 = before
+    h1 = t_s - t1
+    h2 = t1 - t2
+    if h2 <= 0.0:
+        return
+    d_north = (value[0] - v1[0]) / h1 - (v1[0] - v2[0]) / h2
+    d_east = (value[1] - v1[1]) / h1 - (v1[1] - v2[1]) / h2
+    c = 1.0 / (h1 * h1) + (1.0 / h1 + 1.0 / h2) ** 2 + 1.0 / (h2 * h2)
+    recent = track.recent
+    recent.append((d_north * d_north + d_east * d_east) / (2.0 * c))
+    if len(recent) >= track.recent_min:
+        track.recent_variance = _median(list(recent)) / _MEDIAN_CHI2_2
 
 
 def _update_weight(innovation_variance: float, extra_variance: float) -> float:

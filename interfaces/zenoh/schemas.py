@@ -45,10 +45,10 @@ Schemas (version 1; ``?`` = may be ``null``)
 ``dpcontrol.estimate/1``::
 
     estimator: str  (mmae | kf | rpem | kalman_bucy | raw ...)
-    pose_ned?: {north_m?, east_m?, heading_rad?}          LF pose, NED
+    pose_n?: {north_m?, east_m?, heading_rad?}          LF pose, NED
     velocity_b?: {surge_mps?, sway_mps?, yaw_rate_radps?} LF velocity, body
     bias?: {frame: "ned" | "body", x_n?, y_n?, n_nm?}   slowly varying bias force (seed 002 b)
-    wave_ned?: {north_m?, east_m?, heading_rad?}           WF motion estimate
+    wave_n?: {north_m?, east_m?, heading_rad?}           WF motion estimate
     covariance_diag?: [float?]                            diagonal of P (estimator state order)
 
 ``dpcontrol.mmae/1``::

@@ -26,7 +26,7 @@ from sim_plant.bench.run import build_simulation
 from sim_plant.scenario import parse_scenario
 
 SCALE_CS2 = 70.0  # CyberShip II's model scale (seed 000)
-ENGAGE_S = 20.0  # DP engages once the estimator has settled (the lockstep runs' auto-engage)
+ENGAGE_S = 20.0  # DP engages once the estimator has settled (lockstep auto-engage; Froude-scaled on the model)
 
 # Per vessel: the scenario fragment and the bounds [m], [deg]. Full-scale seas of the supply vessel's fault
 # catalogue (sim_plant/scenarios/faults: Hs 1.0 m, 0.15 m/s current, 6 m/s wind); CyberShip II's the seed 000
@@ -54,7 +54,8 @@ VESSELS: dict[str, dict[str, Any]] = {
                        # 4 m jump floor and 3 m median limit of a ship are 57 mm and 43 mm on the model, its 5 s
                        # freeze window 0.6 s, its 10 s / 180 s rejection times 1.2 s / 21.5 s, its rate check's 30 s
                        # window and 10 s return 3.6 s / 1.2 s, its velocity check's 1 m floor 14 mm, 30 s window
-                       # 3.6 s, 2 s low-pass 0.24 s and 5 s return 0.6 s
+                       # 3.6 s, 2 s low-pass 0.24 s and 5 s return 0.6 s, its 3 s noise window 0.36 s (the hub keeps
+                       # 15 samples at least: 1.5 s at 10 Hz), its 5 s readmission and 20 s blend 0.6 s / 2.4 s
                        "hub": {"jump_min_m": 4.0 / SCALE_CS2, "median_limit_m": 3.0 / SCALE_CS2,
                                "rot_check_window_s": 30.0 / math.sqrt(SCALE_CS2),
                                "rot_check_return_s": 10.0 / math.sqrt(SCALE_CS2),
@@ -62,10 +63,17 @@ VESSELS: dict[str, dict[str, Any]] = {
                                "velocity_check_window_s": 30.0 / math.sqrt(SCALE_CS2),
                                "velocity_check_filter_s": 2.0 / math.sqrt(SCALE_CS2),
                                "velocity_check_return_s": 5.0 / math.sqrt(SCALE_CS2),
+                               "noise_window_s": 3.0 / math.sqrt(SCALE_CS2),
+                               "readmit_s": 5.0 / math.sqrt(SCALE_CS2),
+                               "switch_blend_s": 20.0 / math.sqrt(SCALE_CS2),
                                "freeze_window_s": 5.0 / math.sqrt(SCALE_CS2),
                                "reject_persist_s": 10.0 / math.sqrt(SCALE_CS2),
                                "single_reference_accept_s": 180.0 / math.sqrt(SCALE_CS2)},
-                       "deviation": {"position_warning_m": 0.2, "position_alarm_m": 0.3}},
+                       "deviation": {"position_warning_m": 0.2, "position_alarm_m": 0.3},
+                       # DP engaged after the lockstep runs' 20 s Froude-scaled (2.4 s): 20 s of model time is 167 s of
+                       # a ship drifting in standby (0.45 m, 31 m full scale, in the campaign's current), still being
+                       # made good when the measurement starts
+                       "loop": {"auto_engage_s": ENGAGE_S / math.sqrt(SCALE_CS2)}},
         "sea": {"hs_m": 0.04, "omega_peak_rad_s": 1.2},
         "current_mps": 0.03, "wind_mps": 0.0,
         # (the receiver's velocity noise Froude-scaled with its position noise: 0.02 m/s full scale)
@@ -97,6 +105,7 @@ class Case:
     duration_scale: float | None = None  # fault duration factor; None: the vessel's Froude time scale
     controller: dict[str, Any] | None = None  # controller sections merged over the vessel's (e.g. {"hub": {...}})
     rate_of_turn: bool = False  # a rate-of-turn sensor rot1 (independent of the gyro) besides gnss1 and gyro1
+    noise_factor: float = 10.0  # ``gnss_noise``: the factor on the receiver's white noise [-]
 
     @property
     def fault_duration_s(self) -> float:
@@ -118,7 +127,7 @@ class Case:
         elif self.fault == "gnss_drift":
             fault.update(rate_mps=v["jump_m"] / duration, direction_deg=45.0)
         elif self.fault == "gnss_noise":
-            fault.update(factor=10.0)
+            fault.update(factor=self.noise_factor)
         elif self.fault == "gyro_offset":
             fault.update(offset_deg=10.0)
         elif self.fault in ("gyro_drift", "rot_offset"):

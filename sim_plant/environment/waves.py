@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -115,20 +115,22 @@ class SeaState:
     swell: WaveSystem | None = None
 
     def __post_init__(self) -> None:
-        if self.spectrum not in SPECTRA:
-            raise ValueError(f"unknown spectrum {self.spectrum!r}")
-        if self.hs_m < 0.0 or self.omega_peak_rad_s <= 0.0 or self.components < 1 or self.fade_s < 0.0:
-            raise ValueError(f"invalid sea state {self}")
+        if self.fade_s < 0.0:
+            raise ValueError(f"invalid sea state {self}: fade_s < 0")
+        self.wind_sea()  # (its own checks: spectrum, height, peak, components)
 
     @property
     def calm(self) -> bool:
         return not self.systems()
 
+    def wind_sea(self) -> WaveSystem:
+        """This state's own wave system (its fields but ``t_s``, ``fade_s`` and ``swell``)."""
+        return WaveSystem(self.hs_m, self.omega_peak_rad_s, self.direction_rad, self.spectrum, self.gamma,
+                          self.components)
+
     def systems(self) -> tuple[WaveSystem, ...]:
-        """The systems with waves, the wind sea (this state's own fields) first, then the swell."""
-        wind_sea = WaveSystem(self.hs_m, self.omega_peak_rad_s, self.direction_rad, self.spectrum, self.gamma,
-                              self.components)
-        return tuple(s for s in (wind_sea, self.swell) if s is not None and s.hs_m > 0.0)
+        """The systems with waves, the wind sea first, then the swell."""
+        return tuple(s for s in (self.wind_sea(), self.swell) if s is not None and s.hs_m > 0.0)
 
 
 class WaveSample(NamedTuple):
@@ -290,8 +292,7 @@ PeakGrid = tuple[np.ndarray, tuple[np.ndarray, ...]]
 
 def _systems_or_unit(state: SeaState) -> tuple[WaveSystem, ...]:
     """The state's wave systems, or for a calm state the wind sea's shape at unit Hs (its peaks are still asked)."""
-    return state.systems() or (WaveSystem(1.0, state.omega_peak_rad_s, state.direction_rad, state.spectrum,
-                                          state.gamma, state.components),)
+    return state.systems() or (replace(state.wind_sea(), hs_m=1.0),)
 
 
 def _peak_grid(state: SeaState) -> PeakGrid:

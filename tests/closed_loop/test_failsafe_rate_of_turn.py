@@ -42,9 +42,10 @@ def test_a_frozen_lone_gyro_is_dead_reckoned_on_the_rate_of_turn(vessel: str) ->
     assert texts and "on the model" in texts[0], texts
     without = _heading_estimate_error_deg(base_run, START_S, end + 20.0 * case.fault_duration_s / 40.0)
     if vessel == "cybership2":
-        # measured: the estimate within 0.16° on the rate of turn, 0.58° on the model; the true heading at most
-        # 0.45° from the set-point (reached before the fault) against 0.97° (in the fault)
-        assert with_rot < 0.3 < 0.5 < without, (with_rot, without)
+        # measured: the estimate within 0.16° on the rate of turn, 0.50° on the model (the returning gyro blended in
+        # over the bench's Froude-scaled 2.4 s); the true heading at most 0.45° from the set-point (reached before
+        # the fault) against 0.97° (in the fault)
+        assert with_rot < 0.3 < 0.45 < without, (with_rot, without)
         assert outcome.max_heading_deg < base.max_heading_deg, (outcome, base)
     else:  # the supply vessel's model is good for 40 s already (measured 0.11° either way)
         assert with_rot < 0.2 and without < 0.2, (with_rot, without)

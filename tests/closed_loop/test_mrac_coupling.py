@@ -1,4 +1,4 @@
-"""Issue #33: the MRAC's per-DOF mass estimates under moves that change position and heading together
+"""The MRAC's per-DOF mass estimates under moves that change position and heading together
 (``benchmarks/mrac_estimate_bias.py``: perfect state, no weather, the plant's nonlinear truth model, the command
 applied exactly). Seed 003's diagonal law took the supply vessel's unmodelled sway–yaw coupling (M₂₃, D₂₃, D₃₂)
 and the rotation of the reference's body-frame acceleration for inertia; with the known coupling of the nominal
