@@ -2,12 +2,13 @@
 
 For each seed and each built-in DP vessel (CyberShip II, the supply vessel, the Blue Lady, the shuttle tanker), the
 vessel's seed scenario (its sensors and datum) gets the random environment of
-:func:`wave_filter_campaign.random_sea` (Hs 0.5–4 m and wind 0–12 m/s Froude-scaled below 76.2 m, current 0–0.5 m/s,
-any direction) and three set-points: hold at the origin, at 30 % of the run a move of up to 0.1 L north and east,
-at 60 % back to the origin with a turn of up to ±20°. The controller is the example's (``deploy/config``: its
-estimator, control, guidance, allocation, limits and deviation limits). Printed per run, from the deviation monitor
-(the estimate against the reference the controller follows): the largest and the median position [m] and heading
-[deg] deviation, and the alarms raised. Nothing is asserted: this prints what it measured.
+:func:`wave_filter_campaign.random_sea` (Hs 0.5–4 m, peak 0.35–1.3 rad/s, current 0–0.5 m/s and wind 0–12 m/s,
+Froude-scaled below 76.2 m, the peak too since 2026-12-07 — ``--full-scale-periods`` gives the seas of the runs
+documented before —; any direction) and three set-points: hold at the origin, at 30 % of the run a move of up to
+0.1 L north and east, at 60 % back to the origin with a turn of up to ±20°. The controller is the example's
+(``deploy/config``: its estimator, control, guidance, allocation, limits and deviation limits). Printed per run,
+from the deviation monitor (the estimate against the reference the controller follows): the largest and the median
+position [m] and heading [deg] deviation, and the alarms raised. Nothing is asserted: this prints what it measured.
 
 It found the allocator's missing heading priority (docs/fault-handling.md): with equal slack weights the Blue Lady
 fell 95° off heading in a 0.22 m/s current.
@@ -46,16 +47,16 @@ SHORTFALL_WINDOW_S = 60.0  # the low-frequency window of --shortfall [s]
 
 
 def case(vessel: str, seed: int, allocation: dict[str, Any] | None = None,
-         control: dict[str, Any] | None = None) -> tuple[dict[str, Any], float]:
+         control: dict[str, Any] | None = None, *, full_scale_periods: bool = False) -> tuple[dict[str, Any], float]:
     """The scenario mapping of (vessel, seed) and its duration [s]; ``allocation`` replaces the example's
     ``allocation:`` section (e.g. equal slack weights, to see what heading priority does), ``control`` its
-    ``control:`` section."""
+    ``control:`` section; ``full_scale_periods``: the sea's peak not Froude-scaled."""
     scenario = yaml.safe_load((ROOT / "sim_plant" / "scenarios" / VESSELS[vessel][0]).read_text(encoding="utf-8"))
     length = float(parse_scenario(scenario, file=VESSELS[vessel][0]).vessel.length_m)
     rng = np.random.default_rng([list(VESSELS).index(vessel), seed, 1])  # (1: not the sea's own stream)
     duration = DURATION_S * min(1.0, math.sqrt(length / 76.2))
     move = MOVE_FRACTION * length
-    scenario.update(random_sea(vessel, seed, length))
+    scenario.update(random_sea(vessel, seed, length, full_scale_periods=full_scale_periods))
     scenario.update(name=f"weather-{vessel}-{seed}", duration_s=duration, seed=seed, mass_schedule=[], setpoints=[
         {"t_s": 0, "north_m": 0, "east_m": 0, "heading_deg": 0},
         {"t_s": round(0.3 * duration, 1), "north_m": round(float(rng.uniform(-move, move)), 3),
@@ -120,9 +121,9 @@ def shortfall_onsets(demand: np.ndarray, achieved: np.ndarray, engaged: np.ndarr
 
 
 def run(vessel: str, seed: int, allocation: dict[str, Any] | None = None,
-        control: dict[str, Any] | None = None, shortfall: bool = False) -> str:
+        control: dict[str, Any] | None = None, shortfall: bool = False, *, full_scale_periods: bool = False) -> str:
     """One run; the line it prints (with ``shortfall``: and :func:`shortfall_onsets`)."""
-    scenario, duration = case(vessel, seed, allocation, control)
+    scenario, duration = case(vessel, seed, allocation, control, full_scale_periods=full_scale_periods)
     simulation = build_simulation(parse_scenario(scenario, file=scenario["name"]))
     watch, position, heading = deviation_watch(simulation)
     forces: list[tuple[float, ...]] = []
@@ -166,10 +167,14 @@ def main() -> int:
                              '\'{"kind": "pid"}\'')
     parser.add_argument("--shortfall", action="store_true",
                         help="also print when two low-frequency shortfall criteria would have alarmed")
+    parser.add_argument("--full-scale-periods", action="store_true",
+                        help="the sea's peak 0.35-1.3 rad/s for every vessel (the seas of the runs documented before "
+                             "2026-12-07's Froude scaling)")
     args = parser.parse_args()
     for seed in args.seeds:
         for vessel in args.vessels:
-            print(run(vessel, seed, args.allocation, args.control, args.shortfall), flush=True)
+            print(run(vessel, seed, args.allocation, args.control, args.shortfall,
+                      full_scale_periods=args.full_scale_periods), flush=True)
     return 0
 
 
