@@ -236,14 +236,15 @@ def dead_zone_width(const: np.ndarray, state: np.ndarray, i: int, s_bar: float, 
     settle = const[C_NOISE_TIME, i]
     quiet = state[S_QUIET, i] + dt if resting else 0.0
     state[S_QUIET, i] = quiet if quiet < settle else settle
+    alpha = 1.0 - math.exp(-dt / settle)  # (one low-pass weight for both averages)
     mean_square = state[S_NOISE, i]
     if quiet >= settle:
-        mean_square += (1.0 - math.exp(-dt / settle)) * (s_bar * s_bar - mean_square)
+        mean_square += alpha * (s_bar * s_bar - mean_square)
         state[S_NOISE, i] = mean_square
     if state[S_FLAGS, 2] == 0.0:
         state[S_WEATHER, i] = weather
     mean = state[S_WEATHER, i]
-    mean += (1.0 - math.exp(-dt / settle)) * (weather - mean)
+    mean += alpha * (weather - mean)
     state[S_WEATHER, i] = mean
     measured = factor * math.sqrt(mean_square) + abs(weather - mean) / stiffness
     return measured if measured > width else width
