@@ -96,6 +96,7 @@ WF_FRAMES = ("body", "earth")
 WF_NOISE_RULES = ("equal_intensity", "equal_variance")
 WEIGHTINGS = ("dwsg", "bayes")
 LIKELIHOOD_SCALES = ("band", "common", "own")
+DEAD_RECKONING_BIAS = ("mean", "hold")
 #: Length for which the default wave frequencies are stated [m]: the supply vessel of seed 001, whose sea states
 #: (its Table I, peak ω0 0.45–0.85 rad/s) and bank {0.56, 0.73, 0.80} rad/s are full-scale ones.
 REFERENCE_LENGTH_M = 76.2
@@ -214,6 +215,11 @@ class WaveFilterConfig:
         σ_b of the bias rule [N], [N·m].
     bias_drift_time_s, bias_yaw_drift_time_s : float
         T_drift of the random-walk bias rule in surge/sway (None: ``360·√(L/g)``) and in yaw [s].
+    dead_reckoning_bias : {"mean", "hold"}
+        The surge/sway bias while no position arrives (dead reckoning on the model): ``mean`` (default)
+        relaxes it to its mean over the last T_drift (the slowly varying wave drift and gusts it followed
+        averaged out; :meth:`~dpcontrol.estimation.wave_filter.FrameFilter._dead_reckoning_bias`), ``hold``
+        keeps it as it was when the position was lost.
     process_noise_intensity : tuple of 9 float or None
         Explicit ``diag(Q1, Q2, Q3)``; overrides the four rules above.
     position_noise_std_m, heading_noise_std_rad : float or None
@@ -285,6 +291,7 @@ class WaveFilterConfig:
     bias_moment_std_nm: float | None = None
     bias_drift_time_s: float | None = None
     bias_yaw_drift_time_s: float = 100.0
+    dead_reckoning_bias: str = "mean"
     process_noise_intensity: tuple[float, ...] | None = None
     position_noise_std_m: float | None = None
     heading_noise_std_rad: float | None = None
@@ -343,14 +350,10 @@ class WaveFilterConfig:
                 raise ConfigError("bias_time_constants_s", "Tx == Ty (seed 001 eq. (27): the vessel-parallel "
                                   "rotation commutes with T only then)", list(T))
             object.__setattr__(self, "bias_time_constants_s", T)
-        if self.wf_frame not in WF_FRAMES:
-            raise ConfigError("wf_frame", "one of " + ", ".join(WF_FRAMES), self.wf_frame)
-        if self.wf_noise_rule not in WF_NOISE_RULES:
-            raise ConfigError("wf_noise_rule", "one of " + ", ".join(WF_NOISE_RULES), self.wf_noise_rule)
-        if self.weighting not in WEIGHTINGS:
-            raise ConfigError("weighting", "one of " + ", ".join(WEIGHTINGS), self.weighting)
-        if self.likelihood_scale not in LIKELIHOOD_SCALES:
-            raise ConfigError("likelihood_scale", "one of " + ", ".join(LIKELIHOOD_SCALES), self.likelihood_scale)
+        for name, choices in (("wf_frame", WF_FRAMES), ("wf_noise_rule", WF_NOISE_RULES), ("weighting", WEIGHTINGS),
+                              ("likelihood_scale", LIKELIHOOD_SCALES), ("dead_reckoning_bias", DEAD_RECKONING_BIAS)):
+            if getattr(self, name) not in choices:
+                raise ConfigError(name, "one of " + ", ".join(choices), getattr(self, name))
         for name in ("length_m", "wf_position_std_m", "wf_heading_std_rad", "wf_reference_omega_rad_s",
                      "lf_velocity_std_mps", "lf_yaw_rate_std_radps", "lf_yaw_bandwidth_rad_s", "bias_force_std_n",
                      "bias_moment_std_nm",

@@ -119,6 +119,7 @@ class RpemWaveFilter(FrameFilter):
         self.filter.x = x
         self.filter.P = self._P0.copy()
         self._initialized = True
+        self._restart_bias_mean()
         self._write(np.zeros(3), PATTERN_NONE)
 
     def predicted_measurement(self) -> tuple[np.ndarray, np.ndarray]:
@@ -152,6 +153,7 @@ class RpemWaveFilter(FrameFilter):
         turns = round(float(kf.x[self._heading]) / (2.0 * math.pi))
         if turns:
             kf.x[self._heading] -= turns * 2.0 * math.pi
+        self._dead_reckoning_bias(kf.x, None, code)
         self._write(eps, code)
         # Prediction at the (possibly new) ω̂0, and the sensitivity recursion seed 003 eq. (13).
         x_post = kf.x
@@ -227,4 +229,5 @@ class RpemWaveFilter(FrameFilter):
         self.steps = steps
         self._psi_frame = float(state["psi_frame_rad"])
         self._initialized = bool(state.get("initialized", True))
+        self._load_bias_mean(state)
         self._write(np.zeros(3), PATTERN_NONE)

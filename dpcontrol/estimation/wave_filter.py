@@ -225,6 +225,67 @@ class FrameFilter:
             covariance_diag=np.zeros(n), innovation=np.zeros(3), weights=None, omegas_rad_s=(),
             omega_hat_rad_s=None)
         self.rejected_samples = 0
+        # dead reckoning of the bias (see :meth:`_dead_reckoning_bias`)
+        drift = config.bias_drift_time()
+        self._bias_mean_on = config.dead_reckoning_bias == "mean"
+        self._bias_mean_time_s = drift
+        self._bias_mean_delay_s = drift / 16.0
+        self._bias_relax_time_s = drift / 100.0
+        self._bias_grace_s = drift / 500.0
+        self._restart_bias_mean()
+
+    # -- dead reckoning of the bias ----------------------------------------------------------
+    def _restart_bias_mean(self) -> None:
+        self._bias_mean_ned = [0.0, 0.0]
+        self._bias_mean_span_s = 0.0   # time the mean has averaged over [s]
+        self._since_reset_s = 0.0
+        self._position_gap_s = 0.0     # time since the last position correction [s]
+
+    def _dead_reckoning_bias(self, x: np.ndarray, weights: np.ndarray | None, code: int) -> None:
+        """The surge/sway bias while no position arrives: relaxed to its long-term mean.
+
+        With a position, the corrected bias (blended over the bank) is averaged in NED over the random-walk
+        bias's drift time T_drift (``bias_drift_time_s``: the time scale of mean current and wind changes;
+        a running mean until it has that much), starting T_drift/16 after a reset (the bias's own convergence
+        from zero left out). The bias estimate follows the slowly varying wave drift and wind gusts within
+        ~15 s (the bank's slowest correction mode on the supply vessel); held as it was when the position was
+        lost, it holds that minute's force for the whole dead reckoning, and the thrust with it (the model
+        estimate stays on the set-point only with τ = −b̂, whatever the controller). So once the position has
+        been missing for T_drift/500 (2 s on the supply vessel: a receiver's sample gaps are not dead
+        reckoning), the surge and sway bias states of every model relax to the mean with time constant
+        T_drift/100 (10 s). ``x``: the corrected states, (N, n) or (n,), changed in place.
+        """
+        if not self._bias_mean_on:
+            return
+        dt = self.dt_s
+        self._since_reset_s += dt
+        b0 = self.index.bias.start
+        c = math.cos(self._psi_frame)
+        s = math.sin(self._psi_frame)
+        mean = self._bias_mean_ned
+        if code & _POSITION:
+            gap = self._position_gap_s + dt
+            self._position_gap_s = 0.0
+            if self._since_reset_s <= self._bias_mean_delay_s:
+                return
+            if weights is not None:
+                bx = float(weights @ x[:, b0])
+                by = float(weights @ x[:, b0 + 1])
+            else:
+                bx, by = float(x[b0]), float(x[b0 + 1])
+            self._bias_mean_span_s += gap
+            w = min(1.0, gap / min(self._bias_mean_time_s, self._bias_mean_span_s))
+            mean[0] += w * (c * bx - s * by - mean[0])
+            mean[1] += w * (s * bx + c * by - mean[1])
+            return
+        self._position_gap_s += dt
+        if self._bias_mean_span_s <= 0.0 or self._position_gap_s <= self._bias_grace_s:
+            return
+        mx = c * mean[0] + s * mean[1]
+        my = -s * mean[0] + c * mean[1]
+        k = -math.expm1(-dt / self._bias_relax_time_s)
+        x[..., b0] += k * (mx - x[..., b0])
+        x[..., b0 + 1] += k * (my - x[..., b0 + 1])
 
     # -- inputs -------------------------------------------------------------------------------
     def _read_inputs(self, y_ned: np.ndarray | None, tau_b: np.ndarray,
@@ -334,7 +395,9 @@ class FrameFilter:
     def _frame_state(self) -> dict[str, Any]:
         return {"version": STATE_DICT_VERSION, "kind": self.kind, "n_states": self.index.n,
                 "sample_time_s": self.dt_s, "initialized": self._initialized,
-                "psi_frame_rad": self._psi_frame}
+                "psi_frame_rad": self._psi_frame,
+                "bias_mean": [*self._bias_mean_ned, self._bias_mean_span_s, self._since_reset_s,
+                              self._position_gap_s]}
 
     def _check_state(self, state: dict[str, Any]) -> None:
         if not isinstance(state, dict):
@@ -347,6 +410,21 @@ class FrameFilter:
         psi = float(state.get("psi_frame_rad", math.nan))
         if not math.isfinite(psi):
             raise ValueError("wave filter state: psi_frame_rad must be finite")
+        if state.get("bias_mean") is not None:
+            mean = finite_array(state["bias_mean"], (5,), "bias_mean")
+            if np.any(mean[2:] < 0.0):
+                raise ValueError("wave filter state: bias_mean's times must be >= 0")
+
+    def _load_bias_mean(self, state: dict[str, Any]) -> None:
+        """The bias mean of :meth:`_dead_reckoning_bias` from a state (checked by :meth:`_check_state`); a state
+        saved before it existed restarts it."""
+        self._restart_bias_mean()
+        if state.get("bias_mean") is not None:
+            north, east, span, since, gap = (float(v) for v in state["bias_mean"])
+            self._bias_mean_ned = [north, east]
+            self._bias_mean_span_s = span
+            self._since_reset_s = since
+            self._position_gap_s = gap
 
 
 def finite_array(value: Any, shape: tuple[int, ...], what: str) -> np.ndarray:
@@ -470,6 +548,7 @@ class BankWaveFilter(FrameFilter):
         if self.band_likelihood is not None:
             self.band_likelihood.restart()   # the pose jump is no sea-state evidence
         self._initialized = True
+        self._restart_bias_mean()
         self._blend_and_write(PATTERN_NONE)
         self.output.innovation[:] = 0.0
         self.output.measured = (False, False, False)
@@ -501,6 +580,7 @@ class BankWaveFilter(FrameFilter):
                                        self._K_slots[slot], self.p, self._x_post, self._eps, self._residual)
         if code != PATTERN_NONE and self.kind == "mmae":
             self._update_weights(slot, code)
+        self._dead_reckoning_bias(self._x_post, self.p, code)
         self._write_outputs(code)
         # 3. prediction (seed 002 eq. (52)) with the delivered force: x̄ = Φ x̂ + Γ τ
         bank_predict(self._x_post, self._Phi, self._Gamma, self._tau, self.x)
@@ -616,6 +696,7 @@ class BankWaveFilter(FrameFilter):
         self._log_w[:] = log_w
         self._psi_frame = float(state["psi_frame_rad"])
         self._initialized = bool(state.get("initialized", True))
+        self._load_bias_mean(state)
         self._blend_and_write(PATTERN_NONE)
 
 
@@ -657,6 +738,7 @@ class TimeVaryingWaveFilter(FrameFilter):
         self.filter.x = x
         self.filter.P = self._P0.copy()
         self._initialized = True
+        self._restart_bias_mean()
         self._write(np.zeros(3), PATTERN_NONE)
 
     def predicted_measurement(self) -> tuple[np.ndarray, np.ndarray]:
@@ -685,6 +767,7 @@ class TimeVaryingWaveFilter(FrameFilter):
         turns = round(float(kf.x[self._heading]) / (2.0 * math.pi))
         if turns:
             kf.x[self._heading] -= turns * 2.0 * math.pi
+        self._dead_reckoning_bias(kf.x, None, code)
         self._write(eps_full, code)
         kf.predict(self._tau)
         return self.output
@@ -720,4 +803,5 @@ class TimeVaryingWaveFilter(FrameFilter):
         self.filter.P = 0.5 * (P + P.T)
         self._psi_frame = float(state["psi_frame_rad"])
         self._initialized = bool(state.get("initialized", True))
+        self._load_bias_mean(state)
         self._write(np.zeros(3), PATTERN_NONE)

@@ -171,6 +171,58 @@ def test_dead_reckoning_and_partial_measurements(name: str) -> None:
     assert errors[t > 400].max() < 1.5 * normal + 0.1                       # and recovered
 
 
+def _bias_ned(f: WaveFilter) -> np.ndarray:
+    out = f.output  # the last step's (views)
+    psi = float(out.eta_hat_ned[2])
+    c, s = math.cos(psi), math.sin(psi)
+    b = out.bias_hat_b
+    return np.array([c * b[0] - s * b[1], s * b[0] + c * b[1]])
+
+
+@pytest.mark.parametrize("name", ["mmae", "kf_tv", "rpem"])
+def test_dead_reckoning_relaxes_the_bias_to_its_mean(name: str) -> None:
+    """Without positions, the surge/sway bias goes to its mean over the last T_drift (10 s time constant on the
+    supply vessel, after 2 s without a fix), not held as it was when the position was lost; ``hold`` keeps it;
+    a receiver's sample gaps change nothing; a state saved while dead reckoning restarts the same."""
+    y, lf = _scenario(1800, seed=4)
+    filters = {mode: make_wave_filter(_config(name, dead_reckoning_bias=mode)) for mode in ("mean", "hold")}
+    gappy = make_wave_filter(_config(name))
+    for f in (*filters.values(), gappy):
+        f.reset(y[0])
+    means = []
+    for k in range(1500):                       # 300 s of positions (gappy: every other step)
+        for f in filters.values():
+            f.step(y[k], lf["tau"][k])
+        gappy.step(y[k], lf["tau"][k], (True, True, True) if k % 2 == 0 else (False, False, True))
+        if k * DT > 1003.3 / 16 + 1.0:
+            means.append(_bias_ned(filters["mean"]))
+    assert np.allclose(_bias_ned(gappy), _bias_ned(filters["mean"]), rtol=0.0, atol=2e3)
+    mean = np.mean(means, axis=0)
+    kick = np.array([15e3, -10e3])              # a gust's worth on top, just before the position is lost
+    for f in filters.values():
+        x = f.x if isinstance(f, BankWaveFilter) else f.filter.x
+        b0 = f.index.bias.start
+        x[..., b0:b0 + 2] += kick
+    held = None
+    restored = make_wave_filter(_config(name))
+    for k in range(1500, 1800):                 # 60 s without positions
+        outs = {mode: f.step(y[k], lf["tau"][k], (False, False, True)) for mode, f in filters.items()}
+        if k > 1600:
+            assert np.array_equal(restored.step(y[k], lf["tau"][k], (False, False, True)).bias_hat_b,
+                                  outs["mean"].bias_hat_b)
+        if k == 1501:
+            held = _bias_ned(filters["hold"]).copy()
+            start = _bias_ned(filters["mean"]).copy()
+            assert np.allclose(start, held)     # within the 2 s grace: as held
+        if k == 1600:
+            restored.load_state_dict(json.loads(json.dumps(filters["mean"].state_dict())))
+        assert outs["mean"].measured == (False, False, True)
+    size = np.linalg.norm(kick)
+    assert np.linalg.norm(_bias_ned(filters["hold"]) - held) < 0.05 * size   # (the heading's corrections only)
+    assert np.linalg.norm(_bias_ned(filters["hold"]) - mean) > 0.8 * size
+    assert np.linalg.norm(_bias_ned(filters["mean"]) - mean) < 0.05 * size
+
+
 def test_non_finite_measurements_only_drop_their_channel() -> None:
     f = make_wave_filter(_config("mmae"))
     y, lf = _scenario(50, seed=5)
@@ -234,6 +286,7 @@ def test_load_state_dict_rejects_what_does_not_fit_and_keeps_its_state(name: str
         {**good, "sample_time_s": 1.0},
         {**good, "x": "nonsense"},
         {**good, "psi_frame_rad": math.nan},
+        {**good, "bias_mean": [0.0, 0.0, -1.0, 0.0, 0.0]},
         make_wave_filter(_config(other)).state_dict(),
         [1, 2, 3],
     ]
