@@ -216,10 +216,11 @@ class WaveFilterConfig:
     bias_drift_time_s, bias_yaw_drift_time_s : float
         T_drift of the random-walk bias rule in surge/sway (None: ``360·√(L/g)``) and in yaw [s].
     dead_reckoning_bias : {"mean", "hold"}
-        The surge/sway bias while no position arrives (dead reckoning on the model): ``mean`` (default)
-        relaxes it to its mean over the last T_drift (the slowly varying wave drift and gusts it followed
-        averaged out; :meth:`~dpcontrol.estimation.wave_filter.FrameFilter._dead_reckoning_bias`), ``hold``
-        keeps it as it was when the position was lost.
+        The bias while its measurement is missing (dead reckoning on the model: surge/sway without a position, yaw
+        without a heading): ``mean`` (default) relaxes it to its mean over the last ``bias_drift_time_s`` /
+        ``bias_yaw_drift_time_s`` (the slowly varying wave drift and gusts it followed averaged out;
+        :meth:`~dpcontrol.estimation.wave_filter.FrameFilter._dead_reckoning_bias`), ``hold`` keeps it as it was
+        when the measurement was lost.
     process_noise_intensity : tuple of 9 float or None
         Explicit ``diag(Q1, Q2, Q3)``; overrides the four rules above.
     position_noise_std_m, heading_noise_std_rad : float or None

@@ -228,32 +228,31 @@ class FrameFilter:
         # dead reckoning of the bias (see :meth:`_dead_reckoning_bias`)
         drift = config.bias_drift_time()
         self._bias_mean_on = config.dead_reckoning_bias == "mean"
-        self._bias_mean_time_s = drift
-        self._bias_mean_delay_s = drift / 16.0
-        self._bias_relax_time_s = drift / 100.0
+        self._bias_times_s = (drift, config.bias_yaw_drift_time_s)   # the means' times: surge/sway, yaw
         self._bias_grace_s = drift / 500.0
         self._restart_bias_mean()
 
     # -- dead reckoning of the bias ----------------------------------------------------------
     def _restart_bias_mean(self) -> None:
-        self._bias_mean_ned = [0.0, 0.0]
-        self._bias_mean_span_s = 0.0   # time the mean has averaged over [s]
+        self._bias_mean = [0.0, 0.0, 0.0]   # north, east [N], yaw [N·m]
+        self._bias_mean_span_s = [0.0, 0.0]  # time each mean has averaged over (surge/sway, yaw) [s]
         self._since_reset_s = 0.0
-        self._position_gap_s = 0.0     # time since the last position correction [s]
+        self._bias_gap_s = [0.0, 0.0]        # time since the last position / heading correction [s]
 
     def _dead_reckoning_bias(self, x: np.ndarray, weights: np.ndarray | None, code: int) -> None:
-        """The surge/sway bias while no position arrives: relaxed to its long-term mean.
+        """The bias while its measurement is missing (dead reckoning): relaxed to its mean, not held.
 
-        With a position, the corrected bias (blended over the bank) is averaged in NED over the random-walk
-        bias's drift time T_drift (``bias_drift_time_s``: the time scale of mean current and wind changes;
-        a running mean until it has that much), starting T_drift/16 after a reset (the bias's own convergence
-        from zero left out). The bias estimate follows the slowly varying wave drift and wind gusts within
-        ~15 s (the bank's slowest correction mode on the supply vessel); held as it was when the position was
-        lost, it holds that minute's force for the whole dead reckoning, and the thrust with it (the model
-        estimate stays on the set-point only with τ = −b̂, whatever the controller). So once the position has
-        been missing for T_drift/500 (2 s on the supply vessel: a receiver's sample gaps are not dead
-        reckoning), the surge and sway bias states of every model relax to the mean with time constant
-        T_drift/100 (10 s). ``x``: the corrected states, (N, n) or (n,), changed in place.
+        The bias estimate follows the slowly varying wave drift and wind gusts within ~15 s (the bank's slowest
+        correction mode on the supply vessel); held as it was when the position was lost, it holds that
+        minute's force for the whole dead reckoning, and the thrust with it (the model estimate stays on the
+        set-point only with τ = −b̂, whatever the controller). So, per channel — surge/sway with the position,
+        yaw with the heading —, the corrected bias (blended over the bank) is averaged while measured, over the
+        random-walk bias's drift time T (``bias_drift_time_s``, the time scale of mean current and wind
+        changes; ``bias_yaw_drift_time_s`` in yaw; a running mean until it has that much; surge/sway in NED),
+        from T/16 after a reset (the bias's own convergence from zero left out). Once the measurement has been
+        missing for T_drift/500 (2 s on the supply vessel: a sensor's sample gaps are not dead reckoning), the
+        channel's bias states of every model relax to the mean with time constant T/100 (surge/sway 10 s, yaw
+        1 s on the supply vessel). ``x``: the corrected states, (N, n) or (n,), changed in place.
         """
         if not self._bias_mean_on:
             return
@@ -262,30 +261,38 @@ class FrameFilter:
         b0 = self.index.bias.start
         c = math.cos(self._psi_frame)
         s = math.sin(self._psi_frame)
-        mean = self._bias_mean_ned
-        if code & _POSITION:
-            gap = self._position_gap_s + dt
-            self._position_gap_s = 0.0
-            if self._since_reset_s <= self._bias_mean_delay_s:
-                return
-            if weights is not None:
-                bx = float(weights @ x[:, b0])
-                by = float(weights @ x[:, b0 + 1])
+        mean = self._bias_mean
+        for channel, measured in ((0, code & _POSITION), (1, code & PATTERN_HEADING)):
+            time_s = self._bias_times_s[channel]
+            if measured:
+                gap = self._bias_gap_s[channel] + dt
+                self._bias_gap_s[channel] = 0.0
+                if self._since_reset_s <= time_s / 16.0:
+                    continue
+                self._bias_mean_span_s[channel] += gap
+                w = min(1.0, gap / min(time_s, self._bias_mean_span_s[channel]))
+                if channel == 0:
+                    if weights is not None:
+                        bx, by = float(weights @ x[:, b0]), float(weights @ x[:, b0 + 1])
+                    else:
+                        bx, by = float(x[b0]), float(x[b0 + 1])
+                    mean[0] += w * (c * bx - s * by - mean[0])
+                    mean[1] += w * (s * bx + c * by - mean[1])
+                else:
+                    bn = float(weights @ x[:, b0 + 2]) if weights is not None else float(x[b0 + 2])
+                    mean[2] += w * (bn - mean[2])
+                continue
+            self._bias_gap_s[channel] += dt
+            if self._bias_mean_span_s[channel] <= 0.0 or self._bias_gap_s[channel] <= self._bias_grace_s:
+                continue
+            k = -math.expm1(-dt / (time_s / 100.0))
+            if channel == 0:
+                mx = c * mean[0] + s * mean[1]
+                my = -s * mean[0] + c * mean[1]
+                x[..., b0] += k * (mx - x[..., b0])
+                x[..., b0 + 1] += k * (my - x[..., b0 + 1])
             else:
-                bx, by = float(x[b0]), float(x[b0 + 1])
-            self._bias_mean_span_s += gap
-            w = min(1.0, gap / min(self._bias_mean_time_s, self._bias_mean_span_s))
-            mean[0] += w * (c * bx - s * by - mean[0])
-            mean[1] += w * (s * bx + c * by - mean[1])
-            return
-        self._position_gap_s += dt
-        if self._bias_mean_span_s <= 0.0 or self._position_gap_s <= self._bias_grace_s:
-            return
-        mx = c * mean[0] + s * mean[1]
-        my = -s * mean[0] + c * mean[1]
-        k = -math.expm1(-dt / self._bias_relax_time_s)
-        x[..., b0] += k * (mx - x[..., b0])
-        x[..., b0 + 1] += k * (my - x[..., b0 + 1])
+                x[..., b0 + 2] += k * (mean[2] - x[..., b0 + 2])
 
     # -- inputs -------------------------------------------------------------------------------
     def _read_inputs(self, y_ned: np.ndarray | None, tau_b: np.ndarray,
@@ -396,8 +403,7 @@ class FrameFilter:
         return {"version": STATE_DICT_VERSION, "kind": self.kind, "n_states": self.index.n,
                 "sample_time_s": self.dt_s, "initialized": self._initialized,
                 "psi_frame_rad": self._psi_frame,
-                "bias_mean": [*self._bias_mean_ned, self._bias_mean_span_s, self._since_reset_s,
-                              self._position_gap_s]}
+                "bias_mean": [*self._bias_mean, *self._bias_mean_span_s, self._since_reset_s, *self._bias_gap_s]}
 
     def _check_state(self, state: dict[str, Any]) -> None:
         if not isinstance(state, dict):
@@ -411,8 +417,8 @@ class FrameFilter:
         if not math.isfinite(psi):
             raise ValueError("wave filter state: psi_frame_rad must be finite")
         if state.get("bias_mean") is not None:
-            mean = finite_array(state["bias_mean"], (5,), "bias_mean")
-            if np.any(mean[2:] < 0.0):
+            mean = finite_array(state["bias_mean"], (8,), "bias_mean")
+            if np.any(mean[3:] < 0.0):
                 raise ValueError("wave filter state: bias_mean's times must be >= 0")
 
     def _load_bias_mean(self, state: dict[str, Any]) -> None:
@@ -420,11 +426,11 @@ class FrameFilter:
         saved before it existed restarts it."""
         self._restart_bias_mean()
         if state.get("bias_mean") is not None:
-            north, east, span, since, gap = (float(v) for v in state["bias_mean"])
-            self._bias_mean_ned = [north, east]
-            self._bias_mean_span_s = span
-            self._since_reset_s = since
-            self._position_gap_s = gap
+            values = [float(v) for v in state["bias_mean"]]
+            self._bias_mean = values[0:3]
+            self._bias_mean_span_s = values[3:5]
+            self._since_reset_s = values[5]
+            self._bias_gap_s = values[6:8]
 
 
 def finite_array(value: Any, shape: tuple[int, ...], what: str) -> np.ndarray:

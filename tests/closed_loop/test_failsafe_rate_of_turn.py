@@ -4,7 +4,7 @@ rate gyro (``rot1``, its own device: a gyro fault leaves it running), in a sea w
 true heading stays within 3° of the set-point and the position within 3 m (43 mm), the mode is auto_position at
 the end, and the alarm says the heading is on the rate of turn. The same run without the rate sensor is the
 comparison (the model alone carries the heading): on CyberShip II, whose model drifts fastest, the rate of turn
-keeps the heading estimate within a third of the model's error."""
+keeps the heading estimate under half the model's error."""
 
 from __future__ import annotations
 
@@ -42,10 +42,10 @@ def test_a_frozen_lone_gyro_is_dead_reckoned_on_the_rate_of_turn(vessel: str) ->
     assert texts and "on the model" in texts[0], texts
     without = _heading_estimate_error_deg(base_run, START_S, end + 20.0 * case.fault_duration_s / 40.0)
     if vessel == "cybership2":
-        # measured: the estimate within 0.16° on the rate of turn, 0.50° on the model (the returning gyro blended in
-        # over the bench's Froude-scaled 2.4 s); the true heading at most 0.45° from the set-point (reached before
-        # the fault) against 0.97° (in the fault)
-        assert with_rot < 0.3 < 0.45 < without, (with_rot, without)
+        # measured: the estimate within 0.15° on the rate of turn, 0.35° on the model (0.50° while the yaw bias was
+        # held through the dead reckoning instead of relaxed to its mean; the returning gyro blended in over the
+        # bench's Froude-scaled 2.4 s)
+        assert with_rot < 0.3 and with_rot < 0.5 * without, (with_rot, without)
         assert outcome.max_heading_deg < base.max_heading_deg, (outcome, base)
-    else:  # the supply vessel's model is good for 40 s already (measured 0.11° either way)
+    else:  # the supply vessel's model is good for 40 s already (measured 0.13° on the rate, 0.10° on the model)
         assert with_rot < 0.2 and without < 0.2, (with_rot, without)

@@ -286,7 +286,7 @@ def test_load_state_dict_rejects_what_does_not_fit_and_keeps_its_state(name: str
         {**good, "sample_time_s": 1.0},
         {**good, "x": "nonsense"},
         {**good, "psi_frame_rad": math.nan},
-        {**good, "bias_mean": [0.0, 0.0, -1.0, 0.0, 0.0]},
+        {**good, "bias_mean": [0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0]},
         make_wave_filter(_config(other)).state_dict(),
         [1, 2, 3],
     ]
