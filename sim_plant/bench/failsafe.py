@@ -35,9 +35,13 @@ ENGAGE_S = 20.0  # DP engages once the estimator has settled (lockstep auto-enga
 VESSELS: dict[str, dict[str, Any]] = {
     "supply": {
         "datum": {"lat_deg": 60.35, "lon_deg": 2.75},
-        "controller": {"estimator": {"kind": "mmae", "omegas_rad_s": [0.56, 0.73, 0.80],
+        # as shipped (deploy/config/supply.yaml): the PID with the wave filter's bias fed forward, seed 001's bank;
+        # the noise of the bench's receiver and gyro (what the sensors' sigma_m / sigma_deg would give). Not her
+        # fallback.position_loss hold_heading: a single-reference case dead-reckons past the 60 s limit
+        # (alarm position.dead_reckoning_limit) so that what the dead reckoning does stays measured
+        "controller": {"estimator": {"kind": "mmae", "omegas_rad_s": [0.56, 0.73, 0.80], "dead_reckoning_bias": "mean",
                                      "position_noise_std_m": 0.3, "heading_noise_std_rad": 8.7e-4},
-                       "control": {"kind": "pid"}},
+                       "control": {"kind": "pid", "integral_action": "bias_feedforward"}},
         "sea": {"hs_m": 1.0, "omega_peak_rad_s": 0.79},
         "current_mps": 0.15, "wind_mps": 6.0,
         "gnss": {"rate_hz": 5, "noise_m": 0.3}, "gyro": {"rate_hz": 10, "noise_deg": 0.05},
