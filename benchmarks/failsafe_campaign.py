@@ -17,6 +17,7 @@ Usage::
 
     OPENBLAS_NUM_THREADS=1 nice -n 10 python benchmarks/failsafe_campaign.py --runs 40 --seed 1
     OPENBLAS_NUM_THREADS=1 nice -n 10 python benchmarks/failsafe_campaign.py --runs 20 --seed 1 --rate-of-turn
+    OPENBLAS_NUM_THREADS=1 nice -n 10 python benchmarks/failsafe_campaign.py --runs 30 --seed 1 --phases
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from sim_plant.bench.failsafe import VESSELS, Case, Outcome, run_case
+from sim_plant.bench.lockstep import ProbedRun
 from sim_plant.faults import GNSS_FAULTS, GYRO_FAULTS, ROT_FAULTS
 
 NOTED = ("dead_reckoning", "reference_rejected", "frozen", "stale", "rejected", "noisy", "fallback", "restored",
@@ -57,6 +59,20 @@ def draw_cases(runs: int, seed: int, vessels: list[str], rate_of_turn: bool = Fa
     return cases
 
 
+def _phases(case: Case, run: ProbedRun) -> str:
+    """The largest true LF position / heading distance from the set-point before the fault (from 60 s), in it and
+    after it (``--phases``; CyberShip II in mm)."""
+    t = run.t_s
+    position = np.hypot(run.col("north_m"), run.col("east_m")) * (1.0 if case.vessel == "supply" else 1000.0)
+    heading = np.degrees(np.abs(np.angle(np.exp(1j * run.col("heading_rad")))))
+    end = case.start_s + case.fault_duration_s
+    parts = []
+    for name, mask in (("before", (t >= 60.0) & (t < case.start_s)), ("in", (t >= case.start_s) & (t <= end)),
+                       ("after", t > end)):
+        parts.append(f"{name} {np.max(position[mask]):.3g}/{np.max(heading[mask]):.2f}" if mask.any() else f"{name} -")
+    return "  | " + " ".join(parts)
+
+
 def _row(case: Case, outcome: Outcome) -> str:
     v = VESSELS[case.vessel]
     within = "yes" if outcome.within(case) else "NO"
@@ -78,6 +94,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--vessels", default="supply,cybership2")
     parser.add_argument("--rate-of-turn", action="store_true",
                         help="a rate-of-turn sensor rot1 besides gnss1 and gyro1; its faults drawn too")
+    parser.add_argument("--phases", action="store_true",
+                        help="also the largest position/heading before the fault (from 60 s), in it and after it")
     parser.add_argument("--cases-out", type=Path)
     parser.add_argument("--cases-in", type=Path)
     args = parser.parse_args(argv)
@@ -93,10 +111,10 @@ def main(argv: list[str] | None = None) -> int:
     left = 0
     wall = time.perf_counter()
     for case in cases:
-        _, outcome = run_case(case)
+        run, outcome = run_case(case)
         within += outcome.within(case)
         left += outcome.left_dp
-        print(_row(case, outcome), flush=True)
+        print(_row(case, outcome) + (_phases(case, run) if args.phases else ""), flush=True)
     print(f"\n{len(cases)} runs in {time.perf_counter() - wall:.0f} s: {within} within the bounds, "
           f"{len(cases) - within} outside; {left} left auto_position (fall-back)")
     return 0
