@@ -239,11 +239,13 @@ def correction_metrics(result: RunResult, bands: Sequence[float] = (0.02, 0.05))
 
 
 def run(vessel: str, seed: int, controller: str, loading: Loading = Loading(),
-        bands: Sequence[float] = (0.02, 0.05)) -> dict[str, Any]:
-    """One run; returns its per-correction metrics, the final MRAC surge-mass error and the wall time."""
+        bands: Sequence[float] = (0.02, 0.05), *, control: dict[str, Any] | None = None) -> dict[str, Any]:
+    """One run; returns its per-correction metrics, the final MRAC surge-mass error and the wall time. ``control``:
+    keys added to both controllers' ``control`` section (e.g. ``{"actuator_time_constant_s": 0}``)."""
     mapping = scenario_mapping(vessel, seed, loading)
     simulation = build_simulation(parse_scenario(mapping, file=mapping["name"]),
-                                  overrides=controller_overrides(CONTROLLERS[controller], loading))
+                                  overrides=controller_overrides({**CONTROLLERS[controller], **(control or {})},
+                                                                 loading))
     start = time.perf_counter()
     result = simulation.run()
     wall = time.perf_counter() - start
@@ -363,6 +365,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="moderate (default): a moderate sea per seed; calm: its current only; still: no waves, "
                              "wind or current; seed003: the seed scenario's own sea and current")
     parser.add_argument("--controllers", nargs="+", choices=list(CONTROLLERS), default=list(CONTROLLERS))
+    parser.add_argument("--control", default=None,
+                        help="JSON object of control keys added to both controllers (kind: mrac)")
     parser.add_argument("--json", type=Path, default=None, help="append one JSON object per run to this file")
     args = parser.parse_args(argv)
     loading = Loading(hours=args.hours, factor=args.factor, interval_s=args.interval, move_per_length=args.move,
@@ -372,7 +376,8 @@ def main(argv: list[str] | None = None) -> int:
         for seed in args.seeds:
             runs = {}
             for controller in args.controllers:
-                result = run(vessel, seed, controller, loading, args.bands)
+                result = run(vessel, seed, controller, loading, args.bands,
+                             control=json.loads(args.control) if args.control else None)
                 runs[controller] = result
                 results.append(result)
                 if args.json is not None:

@@ -22,7 +22,9 @@ comma-separated list such as ``slew,lag``), by the one it removes from ``all`` (
 (``only-slew``). Printed per case: the surge estimate over the true mass at its peak and at the end of each
 correction's interval, each correction's overshoot [m] (:func:`mrac_loading.correction_metrics`), the delay of the
 plant's surge force behind the command that lines the two up best after the first move [s], and whether the
-supervision suspended the adaptation (an estimate on its bound; it then continues at the nominal mass).
+supervision suspended the adaptation (an estimate on its bound; it then continues at the nominal mass). With
+``--decompose`` also what the law learnt in each correction from the true tracking error and from the estimate's
+error (:func:`_decompose`).
 
 Run (6–15 s per case, one process)::
 
@@ -43,7 +45,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.linalg import solve_continuous_lyapunov
 
+from dpcontrol.control.mrac import default_mrac_config
 from dpcontrol.models.vessels import BUILTIN_VESSELS, VesselData
 from sim_plant.bench.lockstep import controller_mapping
 from sim_plant.bench.run import build_simulation
@@ -139,6 +143,7 @@ def run_case(vessel_name: str, seed: int, case: str, loading: mrac_loading.Loadi
         peaks.append(round(float(np.max(ratio[sel])), 3) if np.any(sel) else None)
         ends.append(round(float(ratio[sel][-1]), 3) if np.any(sel) else None)
     metrics = mrac_loading.correction_metrics(result)
+    from_true, from_estimate = _decompose(mapping["vessel"], c, data, points)
     # the force the plant got over the command, after the first move: how much of the command arrives
     after = t >= points[0]
     act = data[after, c.index("tau_act_x_n")]
@@ -146,7 +151,41 @@ def run_case(vessel_name: str, seed: int, case: str, loading: mrac_loading.Loadi
     suspended = any(event.code == "control.adaptation" and event.raised for event in result.alarm_events)
     return {"vessel": vessel_name, "seed": seed, "case": case, "elements": sorted(elements), "peak": peaks,
             "end": ends, "overshoot_m": [row["overshoot_m"] for row in metrics],
-            "force_delay_s": lag_s, "suspended": suspended, "wall_s": round(wall, 1)}
+            "force_delay_s": lag_s, "suspended": suspended, "from_true_error": from_true,
+            "from_estimate_error": from_estimate, "wall_s": round(wall, 1)}
+
+
+def _decompose(vessel: VesselData, c: Any, data: np.ndarray, points: list[float]) -> tuple[list[float], list[float]]:
+    """What the law (21) learnt in each correction's first 300 s (surge, over the true mass), split into the part
+    from the true tracking error and the part from the estimate's error: ``−Γ g₁₂ ∫ ÿ_M s̄ dt`` over the steps the
+    gate is open, with ``s̄ = e + (g₂₂/g₁₂) ė`` of the true LF state and of the estimate against the recorded y_M
+    (its rates by finite differences; heading ≈ 0, so surge is north). An approximation of the law (no dead zone,
+    projection or freeze): the two parts show where the learning came from, not its exact amount."""
+    config = default_mrac_config(vessel)
+    beta0, beta1 = float(config.beta0[0]), float(config.beta1[0])
+    g = solve_continuous_lyapunov(np.array([[0.0, -beta0], [1.0, -beta1]]), -np.diag(config.lyapunov_q))  # (20)
+    g12 = float(g[0, 1])
+    ratio = float(g[1, 1]) / g12
+    gamma = config.adaptation_gain_mass[0]
+    t = data[:, c.index("t_s")]
+    dt = float(np.median(np.diff(t)))
+    y_m = data[:, c.index("mrac_ref_model_north_m")]
+    yd_m = np.gradient(y_m, dt)
+    ydd_m = np.gradient(yd_m, dt)
+    s_true = data[:, c.index("north_m")] - y_m + ratio * (data[:, c.index("surge_mps")] - yd_m)
+    s_est = data[:, c.index("est_north_m")] - y_m + ratio * (data[:, c.index("est_surge_mps")] - yd_m)
+    mass = data[:, c.index("true_surge_mass_kg")]
+    from_true, from_estimate = [], []
+    for start_s in points:
+        sel = (t >= start_s) & (t < start_s + 300.0) & (np.abs(ydd_m) > config.accel_threshold[0]) & np.isfinite(s_est)
+        if not np.any(sel):
+            from_true.append(math.nan)
+            from_estimate.append(math.nan)
+            continue
+        scale = -gamma * g12 * dt / float(mass[sel][-1])
+        from_true.append(round(scale * float(np.sum(ydd_m[sel] * s_true[sel])), 3))
+        from_estimate.append(round(scale * float(np.sum(ydd_m[sel] * (s_est[sel] - s_true[sel]))), 3))
+    return from_true, from_estimate
 
 
 def _delay_s(t: np.ndarray, command: np.ndarray, actual: np.ndarray) -> float | None:
@@ -177,6 +216,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--override", default=None, help="JSON object of extra control keys (kind: mrac)")
     parser.add_argument("--ramp", action="store_true",
                         help="the loading ramp to the end (default: the mass held from the first correction on)")
+    parser.add_argument("--decompose", action="store_true",
+                        help="also print what the law learnt per correction from the true and the estimate's error")
     parser.add_argument("--json", action="store_true", help="one JSON object per line")
     args = parser.parse_args(argv)
     loading = mrac_loading.Loading(hours=args.hours, factor=args.factor, loop_hz=args.loop_hz, plant_hz=args.plant_hz,
@@ -199,6 +240,9 @@ def main(argv: list[str] | None = None) -> int:
                   f"{row(result['end'], '8.3f'):>26s} {row(result['overshoot_m'], '6.2f'):>20s} "
                   f"{result['force_delay_s']:5.1f}s{'  SUSPENDED' if result['suspended'] else ''}"
                   f"  (seed {seed}, {result['wall_s']:.0f} s)", flush=True)
+            if args.decompose:
+                print(f"{'':10s} learnt from the true error {row(result['from_true_error'], '+7.3f')}, "
+                      f"from the estimate's error {row(result['from_estimate_error'], '+7.3f')}", flush=True)
     return 0
 
 
