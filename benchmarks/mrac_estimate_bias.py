@@ -9,7 +9,9 @@ their Coriolis terms, linear and quadratic damping) with
 * no wind, current or waves, no sensor noise (b̂ = 0),
 * the command applied as the plant's force exactly (no allocation, no thruster dynamics: nothing saturates), or
   through a first-order lag of ``command_lag_s`` (``--command-lag``: a stand-in for thruster dynamics and estimator
-  lag, the delay the law sees between the reference's acceleration and the vessel's).
+  lag, the delay the law sees between the reference's acceleration and the vessel's). With ``--lead`` the MRAC's
+  ``actuator_time_constant_s`` is that lag (the lead of its feed-forward by the lag's inverse), not the vessel's
+  thrusters'.
 
 After a rest of ``rest_periods`` reference-model periods (the MRAC's entry rest is one) the set-point alternates
 ``moves`` times between the start pose and the start pose moved by ``0.08 L`` and ``10°`` (the MRAC's design move,
@@ -80,6 +82,9 @@ class BiasRun:
         Diagnostic: the plant without its quadratic damping (the controller's design model has none).
     command_lag_s : float
         Time constant of a first-order lag between the command and the plant's force [s] (0: none).
+    lead : bool
+        The MRAC's ``actuator_time_constant_s`` is ``command_lag_s`` (the lead of its feed-forward); False: its
+        default (no lead).
     override : dict, optional
         :class:`~dpcontrol.control.mrac.MracConfig` fields replaced after the defaults.
     """
@@ -94,6 +99,7 @@ class BiasRun:
     reference: str = "model"
     linear_plant: bool = False
     command_lag_s: float = 0.0
+    lead: bool = False
     override: dict[str, Any] | None = None
 
 
@@ -104,6 +110,8 @@ def run(vessel: VesselData, options: BiasRun = BiasRun()) -> dict[str, Any]:
     steps_per_period, seed, pattern = options.steps_per_period, options.seed, options.pattern
     reference, linear_plant, override = options.reference, options.linear_plant, options.override
     config = default_mrac_config(vessel, reference=reference)
+    if options.lead:  # the controller's actuators are this loop's: the command lag, not the vessel's thrusters
+        config = replace(config, actuator_time_constant_s=(options.command_lag_s,) * 3)
     if override:
         config = replace(config, **override)
     controller = MracController(config)
@@ -178,6 +186,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="diagnostic: the plant without its quadratic damping")
     parser.add_argument("--command-lag", type=float, default=0.0,
                         help="time constant of a first-order lag of the command [s] (default 0: none)")
+    parser.add_argument("--lead", action="store_true",
+                        help="the MRAC leads its feed-forward by the command lag (actuator_time_constant_s)")
     parser.add_argument("--json", action="store_true", help="one JSON object per line")
     args = parser.parse_args(argv)
     override = json.loads(args.override) if args.override else None
@@ -190,7 +200,7 @@ def main(argv: list[str] | None = None) -> int:
         options = BiasRun(kind=args.kind, moves=args.moves, hold_periods=args.hold_periods,
                           steps_per_period=args.steps_per_period, seed=args.seed, pattern=args.pattern,
                           reference=args.reference, linear_plant=args.linear_plant,
-                          command_lag_s=args.command_lag, override=override)
+                          command_lag_s=args.command_lag, lead=args.lead, override=override)
         result = run(VESSELS[name], options)
         result["seconds"] = round(time.perf_counter() - start, 1)
         if args.json:

@@ -71,7 +71,7 @@ VESSELS: dict[str, tuple[str, str | None]] = {
     "shuttle_tanker": ("tanker-seed003.yaml", None),
     "supply": ("supply-seed001.yaml", "supply.yaml"),
 }
-ENVIRONMENTS: tuple[str, ...] = ("moderate", "calm", "seed003")
+ENVIRONMENTS: tuple[str, ...] = ("moderate", "calm", "still", "seed003")
 CONTROLLERS: dict[str, dict[str, Any]] = {
     "mrac": {"kind": "mrac"},
     "fixed_pd": {"kind": "mrac", "adapt": False},
@@ -94,9 +94,10 @@ class Loading:
         Correction size over the ship length.
     loop_hz, plant_hz : float or None
         Control-loop and plant rates [Hz] (None: the scenario's / configuration's).
-    environment : {"moderate", "calm", "seed003"}
+    environment : {"moderate", "calm", "still", "seed003"}
         ``moderate``: :func:`moderate_sea` of the seed; ``calm``: its current only, no waves and no wind (the
-        response without the sea's disturbance); ``seed003``: the vessel's seed scenario's own sea and current (for
+        response without the sea's disturbance); ``still``: no waves, wind or current (only the sensors' noise
+        and the loop itself); ``seed003``: the vessel's seed scenario's own sea and current (for
         the tanker seed 003 Fig. 8: Hs 2 m, Tp 10 s and 1 m/s from ahead), the seed drawing its realisation.
     """
 
@@ -154,9 +155,11 @@ def scenario_mapping(vessel: str, seed: int, loading: Loading = Loading()) -> di
         raise ValueError(f"environment must be one of {ENVIRONMENTS}, got {loading.environment!r}")
     if loading.environment != "seed003":
         scenario.update(moderate_sea(vessel, seed))
-    if loading.environment == "calm":
+    if loading.environment in ("calm", "still"):
         scenario["sea_states"] = [{**scenario["sea_states"][0], "hs_m": 0.0}]
         scenario["wind"] = {**scenario["wind"], "speed_mps": 0.0}
+    if loading.environment == "still":
+        scenario["current"] = {**scenario["current"], "speed_mps": 0.0}
     setpoints: list[dict[str, float]] = [{"t_s": 0.0, "north_m": 0.0, "east_m": 0.0, "heading_deg": 0.0}]
     for k in range(1, loading.corrections + 1):
         setpoints.append({"t_s": round(k * loading.interval_s, 3), "north_m": move if k % 2 else 0.0,
@@ -236,11 +239,13 @@ def correction_metrics(result: RunResult, bands: Sequence[float] = (0.02, 0.05))
 
 
 def run(vessel: str, seed: int, controller: str, loading: Loading = Loading(),
-        bands: Sequence[float] = (0.02, 0.05)) -> dict[str, Any]:
-    """One run; returns its per-correction metrics, the final MRAC surge-mass error and the wall time."""
+        bands: Sequence[float] = (0.02, 0.05), *, control: dict[str, Any] | None = None) -> dict[str, Any]:
+    """One run; returns its per-correction metrics, the final MRAC surge-mass error and the wall time. ``control``:
+    keys added to both controllers' ``control`` section (e.g. ``{"actuator_time_constant_s": 0}``)."""
     mapping = scenario_mapping(vessel, seed, loading)
     simulation = build_simulation(parse_scenario(mapping, file=mapping["name"]),
-                                  overrides=controller_overrides(CONTROLLERS[controller], loading))
+                                  overrides=controller_overrides({**CONTROLLERS[controller], **(control or {})},
+                                                                 loading))
     start = time.perf_counter()
     result = simulation.run()
     wall = time.perf_counter() - start
@@ -333,13 +338,14 @@ def print_spread(results: list[dict[str, Any]], interval_s: float) -> None:
             trend = [v for v in (thirds([row[metric] for row in r["corrections"]], interval_s) for r in rows)
                      if v is not None]
             firsts = [r["corrections"][0][metric] for r in rows]
+            known = [v for v in firsts if v is not None]  # (none when no run settled at its first correction)
             lasts = [interval_s if r["corrections"][-1][metric] is None else r["corrections"][-1][metric] for r in rows]
 
             def spread(values: list[float]) -> str:
                 return f"{statistics.median(values):.2f} ({min(values):.2f}–{max(values):.2f})" if values else "—"
 
             print(f"  {metric:20s} {spread(finite)}{f' [{bounds} lower bounds: not settled]' if bounds else ''} | "
-                  f"{spread(trend)} | {_fmt(statistics.median(v for v in firsts if v is not None), '.3g')} → "
+                  f"{spread(trend)} | {_fmt(statistics.median(known) if known else None, '.3g')} → "
                   f"{statistics.median(lasts):.3g}")
 
 
@@ -356,9 +362,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--loop-hz", type=float, default=None, help="control-loop rate [Hz] (default: the config's)")
     parser.add_argument("--plant-hz", type=float, default=None, help="plant rate [Hz] (default: the scenario's)")
     parser.add_argument("--environment", choices=ENVIRONMENTS, default="moderate",
-                        help="moderate (default): a moderate sea per seed; calm: its current only; seed003: the "
-                             "seed scenario's own sea and current")
+                        help="moderate (default): a moderate sea per seed; calm: its current only; still: no waves, "
+                             "wind or current; seed003: the seed scenario's own sea and current")
     parser.add_argument("--controllers", nargs="+", choices=list(CONTROLLERS), default=list(CONTROLLERS))
+    parser.add_argument("--control", default=None,
+                        help="JSON object of control keys added to both controllers (kind: mrac)")
     parser.add_argument("--json", type=Path, default=None, help="append one JSON object per run to this file")
     args = parser.parse_args(argv)
     loading = Loading(hours=args.hours, factor=args.factor, interval_s=args.interval, move_per_length=args.move,
@@ -368,7 +376,8 @@ def main(argv: list[str] | None = None) -> int:
         for seed in args.seeds:
             runs = {}
             for controller in args.controllers:
-                result = run(vessel, seed, controller, loading, args.bands)
+                result = run(vessel, seed, controller, loading, args.bands,
+                             control=json.loads(args.control) if args.control else None)
                 runs[controller] = result
                 results.append(result)
                 if args.json is not None:

@@ -32,7 +32,8 @@ surge, sway, yaw along the last axis; the PID's layout is given with its constan
   [N·s²/m², N·s²/m², N·m·s²], ``C_ENTRY_REST`` how long the reference model must have rested
   after an entry into DP before anything is learnt [s] (0: no wait) and ``C_GUIDED`` = (1.0: y_M is the
   guidance's reference itself, 0.0: the second-order model (15) driven by it, unused, unused),
-  ``C_NOISE_FACTOR`` k and ``C_NOISE_TIME`` T_n [s] of the measured dead zone (:func:`dead_zone_width`);
+  ``C_NOISE_FACTOR`` k and ``C_NOISE_TIME`` T_n [s] of the measured dead zone (:func:`dead_zone_width`),
+  ``C_LEAD`` the actuator time constant T_u [s] of the feed-forward's lead (:func:`mrac_step`; 0: none);
 * ``state`` (``S_ROWS``, 3): ``S_Y_M``/``S_YD_M`` the reference model y_M, ẏ_M in NED [m, rad; m/s,
   rad/s], ``S_A2``/``S_A1`` the estimates â₂, â₁, ``S_COMMAND``/``S_ACHIEVED`` the last command and
   the force the allocator achieved for it [N, N, N·m], ``S_FLAGS`` = (reference model initialised,
@@ -65,7 +66,8 @@ C_COUPLING = 26  # (COUPLE_* bit mask, κ of the damping bound, unused)
 C_DRAG = 27  # the quadratic damping coefficients of the optional drag term [N·s²/m², N·s²/m², N·m·s²]
 C_NOISE_FACTOR = 28  # k of the measured dead zone d = max(d₀, k·s̄_rms) (0: the fixed d₀ only) [-]
 C_NOISE_TIME = 29  # the averaging time of s̄_rms at rest [s] (> 0)
-C_ROWS = 30
+C_LEAD = 30  # T_u, the time constant of the actuators' first-order lag the feed-forward leads by [s] (0: no lead)
+C_ROWS = 31
 #: ``C_COUPLING[0]`` bits: which known terms of the nominal model enter the law (see :func:`_known_coupling`)
 COUPLE_INERTIA, COUPLE_ROTATION, COUPLE_CORIOLIS, COUPLE_DAMPING, COUPLE_DRAG = 1, 2, 4, 8, 16
 S_Y_M, S_YD_M, S_A2, S_A1, S_COMMAND, S_ACHIEVED, S_FLAGS, S_REST, S_NOISE, S_QUIET, S_WEATHER = range(11)
@@ -329,6 +331,30 @@ def _known_coupling(couple: int, mask: int, z: np.ndarray, nu_m: np.ndarray, nu:
                     known[i] += d[i, j] * nu[j]
 
 
+@kernel(void(f8_2d, b1, f8_1d, f8_1d, f8, f8, f8, f8, f8, f8_1d, f8_1d))
+def _feedforward(const: np.ndarray, leads: bool, rd: np.ndarray, yd_m: np.ndarray, ydd0: float, ydd1: float,
+                 ydd2: float, c: float, s: float, ydd_b: np.ndarray, ff_b: np.ndarray) -> None:
+    """The feed-forward acceleration ``ff_b`` of z (17) [m/s², m/s², rad/s²]: the reference's body-frame
+    acceleration ``ydd_b``, plus with ``leads`` the actuator lead ``T_u y⃛_M`` (``C_LEAD``).
+
+    ``y⃛_M = β₀(η̇_d − ẏ_M) − β₁ÿ_M`` is model (15), ``ÿ_M = β₀(r − y_M) − β₁ẏ_M``, differentiated (NED:
+    ``rd`` = η̇_d, ``yd_m`` = ẏ_M, ``ydd*`` = ÿ_M [m/s², m/s², rad/s²]), rotated into body axes with
+    ``c, s = cos ψ̂, sin ψ̂`` [m/s³, m/s³, rad/s³].
+    """
+    for i in range(3):
+        ff_b[i] = ydd_b[i]
+    if not leads:
+        return
+    b0 = const[C_BETA0]
+    b1 = const[C_BETA1]
+    lead = const[C_LEAD]
+    j0 = b0[0] * (rd[0] - yd_m[0]) - b1[0] * ydd0
+    j1 = b0[1] * (rd[1] - yd_m[1]) - b1[1] * ydd1
+    ff_b[0] += lead[0] * (c * j0 + s * j1)
+    ff_b[1] += lead[1] * (-s * j0 + c * j1)
+    ff_b[2] += lead[2] * (b0[2] * (rd[2] - yd_m[2]) - b1[2] * ydd2)
+
+
 @kernel(i8(f8, f8_1d, f8_1d, f8_1d, f8_1d, f8_1d, f8_1d, f8_1d, i8, f8_2d, f8_2d, f8_1d))
 def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind: np.ndarray, r: np.ndarray,
               rd: np.ndarray, rdd: np.ndarray, mask: int, const: np.ndarray, state: np.ndarray, out: np.ndarray) -> int:
@@ -337,7 +363,10 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
     The law per DOF i is ``τ_i = â₂ᵢ z_i + â₁ᵢ ν_i + h_i − b̂_i − τ̂_wind,i`` with z of eq. (17) on the reference's
     body-frame acceleration and ``h`` the known coupling of the nominal model (``C_COUPLING``: the rotation
     term in z, :func:`_rotate_acceleration`; the rest in :func:`_known_coupling`; h = 0 and z on Rᵀÿ_M for
-    seed 003's diagonal law).
+    seed 003's diagonal law). With the actuator lead (``C_LEAD`` T_u > 0, model (15) only) the acceleration in z is
+    ``ÿ_M + T_u y⃛_M``, ``y⃛_M = β₀(η̇_d − ẏ_M) − β₁ÿ_M`` the derivative of (15) [m/s³, m/s³, rad/s³] rotated
+    into body axes: through the actuators' lag ``1/(1 + T_u s)`` the force delivered is the desired compensation
+    ``â₂ÿ_M`` the law's regressor assumes (see :mod:`dpcontrol.control.mrac`, "The actuators' lag").
 
     Parameters
     ----------
@@ -348,7 +377,7 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
     r, rd, rdd : ndarray, shape (3,)
         The guidance's reference η_d [m, m, rad], η̇_d [m/s, m/s, rad/s], η̈_d [m/s², m/s², rad/s²] (NED):
         with ``C_GUIDED`` the reference model's state itself (y_M = η_d), otherwise η_d drives model (15)
-        (``u_c = k_M r``) and the rates are not used.
+        (``u_c = k_M r``) and only η̇_d is used, by the actuator lead.
     mask : int
         Controlled DOFs, bit i for DOF i (surge 1, sway 2, yaw 4).
     const, state, out : ndarray
@@ -367,7 +396,8 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
     if _valid3(r) == 0:
         return ERROR_INPUT - 4
     guided = const[C_GUIDED, 0] != 0.0
-    if guided and _valid3(rd) == 0:
+    leads = not guided and (const[C_LEAD, 0] > 0.0 or const[C_LEAD, 1] > 0.0 or const[C_LEAD, 2] > 0.0)
+    if (guided or leads) and _valid3(rd) == 0:
         return ERROR_INPUT - 5
     if guided and _valid3(rdd) == 0:
         return ERROR_INPUT - 6
@@ -397,12 +427,14 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
     ydd_b[2] = ydd2
     couple = int(const[C_COUPLING, 0])
     _rotate_acceleration(couple, yd_m[2], yd_b, ydd_b)
+    ff_b = np.empty(3)  # the feed-forward's acceleration: ÿ_M, led by T_u y⃛_M through the actuators' lag
+    _feedforward(const, leads, rd, yd_m, ydd0, ydd1, ydd2, c, s, ydd_b, ff_b)
     ed_b = out[OUT_VELOCITY_ERROR:OUT_VELOCITY_ERROR + 3]
     z = np.empty(3)
     tau = out[OUT_TAU:OUT_TAU + 3]
     for i in range(3):
         ed_b[i] = nu[i] - yd_b[i]
-        z[i] = ydd_b[i] - b1[i] * ed_b[i] - b0[i] * e_b[i]  # (17)
+        z[i] = ff_b[i] - b1[i] * ed_b[i] - b0[i] * e_b[i]  # (17)
     known = np.zeros(3)
     _known_coupling(couple, mask, z, yd_b, nu, const, known)
     for i in range(3):

@@ -95,6 +95,29 @@ zero. The same benchmark with them: every estimate of every vessel within 0.1 % 
 ``drag`` term ``d_i|ν_M,i|ν_M,i`` removes it in still water, but in a current the drag acts on the unknown
 ν − ν_c, so it is not in the default). ``coupling: []`` gives seed 003's diagonal law.
 
+The actuators' lag
+------------------
+The desired-compensation law assumes that the force commanded is the force the vessel gets. The thrusters deliver
+it through their drives' first-order response ``τ_a = τ/(1 + T_u s)`` (``time_constant_s`` of each thruster: 2 s on
+the supply vessel), so the feed-forward ``â₂ÿ_M`` arrives as ``â₂(ÿ_M − T_u y⃛_M + O(T_u²))``: the error dynamics
+(19) become ``m(ë + β₁ė + β₀e) = (â₂ − m)ÿ_M − â₂T_u y⃛_M + …``, and the error the jerk term drives through
+``1/(s² + β₁s + β₀)`` correlates with ÿ_M, which the law (21) takes for inertia (measured in docs/campaigns.md,
+"The actuators' lag"). With ``actuator_time_constant_s`` the feed-forward is led by the lag's inverse on the
+reference, ``z = ÿ_M + T_u y⃛_M − β₁ė − β₀e`` with
+``y⃛_M = β₀(η̇_d − ẏ_M) − β₁ÿ_M`` [m/s³, rad/s³], the derivative of model (15) (exact: no signal is
+differentiated), so that the force delivered is ``â₂ÿ_M`` to first order in ``T_u ω_M`` and the error equation
+is again (19), with the lag acting only on the PD terms of the tracking error, which are of the order of ``e``: the
+regressor ``v_M = [ÿ_M, ẏ_M]`` and the law (21) are unchanged. Model reference control cancels the plant's known,
+stable dynamics so that the closed loop matches the reference model (Ioannou & Sun, *Robust Adaptive Control*,
+ch. 6); the actuators' lag is such a known part, and the reference being smooth with its derivative known, its
+inverse is realisable on the feed-forward. ``actuator_time_constant_s: thrusters`` takes ``T_u`` per DOF as the
+mean of the thrusters' time constants weighted by the force each gives in the DOF (:func:`actuator_time_constants`):
+what the vessel configuration gives, nothing tuned. Not with ``reference: guidance`` (the guidance gives no jerk; its
+acceleration saturates without a jerk limit) nor a step-driven model (its acceleration jumps), and not the
+thrust-rate limits, the azimuths' slewing or the wave filter's estimate. Off by default (T_u = 0, seed 003's law):
+in the full loop the lag's upward bias is the smaller part of what the law takes for inertia and partly offsets
+the rest (the loading tanker's estimate, until now slightly high, ends lower with the lead; docs/campaigns.md).
+
 Gating and a dead zone rather than σ-modification are the default because the operation the
 controller is made for — loading a shuttle tanker, seed 003 — changes the mass by 2.66× while the
 excitation comes in bursts (a set-point correction every 30 min): leakage would pull the estimate
@@ -160,6 +183,7 @@ from scipy.linalg import expm, solve_continuous_lyapunov
 
 from dpbase.frames import ssa
 from dpbase.schema import ConfigError, Section, check_vector
+from dpcontrol.allocation.geometry import ThrusterGeometry
 from dpcontrol.control.base import (
     ADAPTATION_STATES,
     ALL_DOFS,
@@ -190,6 +214,7 @@ from dpcontrol.control.kernels import (
     C_GAMMA_C,
     C_GAMMA_M,
     C_GUIDED,
+    C_LEAD,
     C_MASS,
     C_NOISE_FACTOR,
     C_NOISE_TIME,
@@ -325,6 +350,11 @@ class MracConfig:
     damping_bound_kappa : float
         κ of the joint bound ``â₁ ≤ ĉ_min + κ β₁ â₂`` where â₁ adapts (0 <= κ < 1; 0: the static bound only;
         :func:`dpcontrol.control.kernels.damping_ceiling`).
+    actuator_time_constant_s : 3 floats
+        T_u per DOF [s] (>= 0): the first-order lag ``1/(1 + T_u s)`` between the command and the force the
+        thrusters deliver, which the feed-forward leads by ``T_u y⃛_M`` (see the module docstring, "The actuators'
+        lag"; with ``reference: model`` only, not for a step-driven model, whose acceleration jumps; default 0: no
+        lead, seed 003's law; ``thrusters`` in the configuration: :func:`actuator_time_constants`).
     """
 
     mass_nominal: Triple
@@ -350,12 +380,13 @@ class MracConfig:
     coupling: tuple[str, ...] = DEFAULT_COUPLING
     damping_bound_kappa: float = 0.9
     quadratic_damping: Triple = (0.0, 0.0, 0.0)
+    actuator_time_constant_s: Triple = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "mass_nominal", _triple("mass_nominal", self.mass_nominal))
         object.__setattr__(self, "damping_nominal", _triple("damping_nominal", self.damping_nominal, allow_zero=True))
         for name in ("adaptation_gain_mass", "adaptation_gain_damping", "dead_zone", "accel_threshold",
-                     "velocity_threshold"):
+                     "velocity_threshold", "actuator_time_constant_s"):
             object.__setattr__(self, name, _triple(name, getattr(self, name), allow_zero=True))
         for name in ("natural_period_s", "relative_damping"):
             object.__setattr__(self, name, _triple(name, getattr(self, name)))
@@ -622,6 +653,25 @@ def default_mrac_config(vessel: VesselData, natural_period_s: float | None = Non
     )
 
 
+def actuator_time_constants(vessel: VesselData) -> Triple:
+    """T_u per DOF (surge, sway, yaw) [s]: the thrusters' first-order time constants (``time_constant_s``) averaged
+    with the force each can give in the DOF as weight.
+
+    The weight of a thruster in DOF i is ``Σ_k |B_ik| T_max`` over its extended-thrust variables k (the
+    configuration matrix of :class:`~dpcontrol.allocation.geometry.ThrusterGeometry`: an azimuth counts in surge,
+    sway and yaw, a tunnel in sway and yaw), so a DOF the thrusters of one kind serve takes their time constant —
+    the supply vessel 2 s in every DOF, the shuttle tanker's surge (main propeller 5 s, azimuth 3 s) 4.7 s. 0 in a
+    DOF no thruster acts in.
+    """
+    geometry = ThrusterGeometry.build(vessel.thrusters)
+    scale = geometry.scale_n[geometry.variable_thruster]
+    tau = np.array([spec.time_constant_s for spec in geometry.specs])[geometry.variable_thruster]
+    weight = np.abs(geometry.B) * scale
+    total = weight.sum(axis=1)
+    lead = [float((weight[i] @ tau) / total[i]) if total[i] > 0.0 else 0.0 for i in range(3)]
+    return (lead[0], lead[1], lead[2])
+
+
 def mrac_config_from_mapping(value: object, vessel: VesselData, path: str = "control") -> MracConfig:
     """Validate a ``control: {kind: mrac, ...}`` mapping over :func:`default_mrac_config`.
 
@@ -630,7 +680,9 @@ def mrac_config_from_mapping(value: object, vessel: VesselData, path: str = "con
     ``accel_threshold``, ``velocity_threshold`` (number or 3 numbers; yaw in rad), ``lyapunov_q``
     (2), ``mass_bounds_factor`` (2), ``damping_bounds_factor`` (2), ``leakage_per_s``, ``entry_rest_s``, ``regressor``
     (``reference`` | ``plant``), ``reference`` (``model`` | ``guidance``, see :class:`MracConfig`), ``adapt``
-    (bool, default true; false = the fixed PD of seed 003 eq. (25) at ``mass_nominal``).
+    (bool, default true; false = the fixed PD of seed 003 eq. (25) at ``mass_nominal``),
+    ``actuator_time_constant_s`` (number or 3 numbers >= 0 [s], or ``thrusters``: :func:`actuator_time_constants`;
+    default 0).
     """
     section = Section.of(value, path)
     section.string("kind", "mrac", choices=("mrac",))
@@ -669,6 +721,17 @@ def mrac_config_from_mapping(value: object, vessel: VesselData, path: str = "con
         if raw is not None:
             kwargs[key] = tuple(float(v) for v in check_vector(raw, f"{section.path}.{key}", length))
     kwargs["damping_bound_kappa"] = section.number("damping_bound_kappa", base.damping_bound_kappa, minimum=0.0)
+    lag = section.raw("actuator_time_constant_s", None)
+    if lag == "thrusters":
+        kwargs["actuator_time_constant_s"] = actuator_time_constants(vessel)
+    elif lag is not None:
+        if isinstance(lag, (int, float)) and not isinstance(lag, bool):
+            lag = [lag] * 3
+        if isinstance(lag, str):
+            raise ConfigError(f"{section.path}.actuator_time_constant_s", "thrusters, a number or 3 numbers >= 0 [s]",
+                              lag)
+        kwargs["actuator_time_constant_s"] = tuple(
+            float(v) for v in check_vector(lag, f"{section.path}.actuator_time_constant_s", 3))
     try:
         config = MracConfig(**{**base.__dict__, **kwargs})
     except ValueError as error:
@@ -746,6 +809,7 @@ class MracController:
         const[C_DRAG] = config.quadratic_damping
         const[C_NOISE_FACTOR] = config.dead_zone_noise_factor
         const[C_NOISE_TIME] = config.natural_period_s
+        const[C_LEAD] = config.actuator_time_constant_s
         self._const = const
         self._state = np.zeros((S_ROWS, 3))
         self._state[S_A2] = m_nom
