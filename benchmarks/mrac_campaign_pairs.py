@@ -1,9 +1,9 @@
 """The MRAC campaigns' acceptance figures: per weather, the MRAC's error RMS over the PID's.
 
-A paired campaign whose last varied key is ``controller.control`` with two choices, the PID first and the MRAC
-second (``sim_plant/campaigns/cs2-mrac.yaml``, ``bluelady-mrac.yaml``: runs ``2k`` and ``2k + 1`` share weather
-``k``), written by ``sim-plant campaign SPEC --out DIR``. Prints, over the weathers where both runs finished:
-the medians of ``position_error_rms_m`` and ``heading_error_rms_deg`` of the MRAC over the PID's, the share of
+A paired campaign whose last varied key is the controller with two choices, a PID and an MRAC
+(``sim_plant/campaigns/cs2-mrac.yaml``, ``bluelady-mrac.yaml``, ``tanker-moves.yaml``: runs ``2k`` and ``2k + 1``
+share weather ``k``), written by ``sim-plant campaign SPEC --out DIR``. Prints, over the weathers where both runs
+finished: the medians of ``position_error_rms_m`` and ``heading_error_rms_deg`` of the MRAC over the PID's, the share of
 weathers with each ratio ≤ 1.1, and in how many the MRAC's adaptation was suspended (the ``control.adaptation``
 alarm) and in which DOF; with ``-v`` one row per weather.
 
@@ -53,7 +53,8 @@ def main() -> None:
     runs = load_runs(args.directory)
     rows = []
     for k in range(0, max(runs, default=-1) + 1, 2):
-        pid, mrac = runs.get(k), runs.get(k + 1)
+        pair = {run["control"]: run for run in (runs.get(k), runs.get(k + 1)) if run is not None}
+        pid, mrac = pair.get("pid"), pair.get("mrac")
         if pid is None or mrac is None:
             continue
         p, m = pid["metrics"], mrac["metrics"]
