@@ -1,10 +1,11 @@
 """The MRAC campaigns' acceptance figures: per weather, the MRAC's error RMS over the PID's.
 
 A paired campaign whose last varied key is ``controller.control`` with two choices, the PID first and the MRAC
-second (``sim_plant/campaigns/cs2-mrac.yaml``, ``bluelady-mrac.yaml``: runs ``2k`` and ``2k + 1`` share weather
-``k``), written by ``sim-plant campaign SPEC --out DIR``. With more than two paired choices (variants of the
-controller, labelled) the runs ``N k + j`` share weather ``k`` and each label is compared with the first (``--against``
-another). Prints, per compared label, over the weathers where both runs finished:
+second (``sim_plant/campaigns/cs2-mrac.yaml``, ``bluelady-mrac.yaml``; ``tanker-moves.yaml`` lists the MRAC first:
+``--against pid``; runs ``2k`` and ``2k + 1`` share weather ``k``), written by ``sim-plant campaign SPEC --out DIR``.
+With more than two paired choices (variants of the controller, labelled) the runs ``N k + j`` share weather ``k``
+and each label is compared with the first (``--against`` another). Prints, per compared label, over the weathers
+where both runs finished:
 the medians of ``position_error_rms_m`` and ``heading_error_rms_deg`` of the MRAC over the PID's, the share of
 weathers with each ratio ≤ 1.1, and in how many the MRAC's adaptation was suspended (the ``control.adaptation``
 alarm) and in which DOF; with ``-v`` one row per weather.
@@ -27,13 +28,18 @@ from typing import Any
 TOLERANCE = 1.1  # the acceptance: the MRAC's RMS errors at most 1.1x the PID's in 90 % of the weathers
 
 
+def controller_label(record: dict[str, Any]) -> str:
+    """The run's label of the varied controller (``controller.control`` or a key under it, e.g. ``.kind``)."""
+    return next((value for key, value in record["labels"].items() if key.startswith("controller.control")), "?")
+
+
 def load_runs(directory: Path) -> tuple[dict[tuple[int, str], dict[str, Any]], list[str]]:
     """The finished runs of a campaign directory (``DIR/runs/*.json``) by (weather, ``controller.control`` label),
     and the labels in the order of the paired choice."""
     records = [json.loads(path.read_text(encoding="utf-8")) for path in (directory / "runs").glob("*.json")]
     by_slot: dict[int, str] = {}
     for record in records:
-        by_slot.setdefault(int(record["run"]), record["labels"].get("controller.control", "?"))
+        by_slot.setdefault(int(record["run"]), controller_label(record))
     labels: list[str] = []
     for run in sorted(by_slot):
         if by_slot[run] in labels:
@@ -43,8 +49,7 @@ def load_runs(directory: Path) -> tuple[dict[tuple[int, str], dict[str, Any]], l
     runs = {}
     for record in records:
         if record["result"]["status"] == "ok":
-            runs[(int(record["run"]) // n, record["labels"].get("controller.control", "?"))] = (
-                record["result"]["summary"])
+            runs[(int(record["run"]) // n, controller_label(record))] = record["result"]["summary"]
     return runs, labels
 
 

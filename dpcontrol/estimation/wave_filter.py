@@ -238,6 +238,7 @@ class FrameFilter:
         self._bias_mean_span_s = [0.0, 0.0]  # time each mean has averaged over (surge/sway, yaw) [s]
         self._since_reset_s = 0.0
         self._bias_gap_s = [0.0, 0.0]        # time since the last position / heading correction [s]
+        self._bias_period_s = [0.0, 0.0]     # the last interval between two corrections (the sensor's period) [s]
 
     def _dead_reckoning_bias(self, x: np.ndarray, weights: np.ndarray | None, code: int) -> None:
         """The bias while its measurement is missing (dead reckoning): relaxed to its mean, not held.
@@ -250,9 +251,11 @@ class FrameFilter:
         random-walk bias's drift time T (``bias_drift_time_s``, the time scale of mean current and wind
         changes; ``bias_yaw_drift_time_s`` in yaw; a running mean until it has that much; surge/sway in NED),
         from T/16 after a reset (the bias's own convergence from zero left out). Once the measurement has been
-        missing for T_drift/500 (2 s on the supply vessel: a sensor's sample gaps are not dead reckoning), the
-        channel's bias states of every model relax to the mean with time constant T/100 (surge/sway 10 s, yaw
-        1 s on the supply vessel). ``x``: the corrected states, (N, n) or (n,), changed in place.
+        missing for T_drift/500 (2 s on the supply vessel) and for three of the channel's last sample intervals
+        (a sensor's period and a missed sample or two are not dead reckoning: a 1 Hz receiver or heading on a
+        vessel whose T_drift/500 is shorter; the interval is not saved with the state), the channel's bias states
+        of every model relax to the mean with time constant T/100 (surge/sway 10 s, yaw 1 s on the supply vessel).
+        ``x``: the corrected states, (N, n) or (n,), changed in place.
         """
         if not self._bias_mean_on:
             return
@@ -267,6 +270,7 @@ class FrameFilter:
             if measured:
                 gap = self._bias_gap_s[channel] + dt
                 self._bias_gap_s[channel] = 0.0
+                self._bias_period_s[channel] = gap
                 if self._since_reset_s <= time_s / 16.0:
                     continue
                 self._bias_mean_span_s[channel] += gap
@@ -283,7 +287,8 @@ class FrameFilter:
                     mean[2] += w * (bn - mean[2])
                 continue
             self._bias_gap_s[channel] += dt
-            if self._bias_mean_span_s[channel] <= 0.0 or self._bias_gap_s[channel] <= self._bias_grace_s:
+            grace = max(self._bias_grace_s, 3.0 * self._bias_period_s[channel])
+            if self._bias_mean_span_s[channel] <= 0.0 or self._bias_gap_s[channel] <= grace:
                 continue
             k = -math.expm1(-dt / (time_s / 100.0))
             if channel == 0:

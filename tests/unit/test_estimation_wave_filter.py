@@ -223,6 +223,20 @@ def test_dead_reckoning_relaxes_the_bias_to_its_mean(name: str) -> None:
     assert np.linalg.norm(_bias_ned(filters["mean"]) - mean) < 0.05 * size
 
 
+@pytest.mark.parametrize("name", ["mmae", "kf_tv"])
+def test_a_slow_sensor_is_not_dead_reckoning(name: str) -> None:
+    """A heading that arrives every 5 s (longer than the 2 s grace of the supply vessel's filter) is a slow sensor,
+    not a lost one: the yaw bias is corrected at each sample and never relaxed in between — as with ``hold``."""
+    y, lf = _scenario(1500, seed=6)
+    filters = {mode: make_wave_filter(_config(name, dead_reckoning_bias=mode)) for mode in ("mean", "hold")}
+    for f in filters.values():
+        f.reset(y[0])
+    for k in range(1500):                       # 300 s, the heading every 25th step
+        flags = (True, True, k % 25 == 0)
+        outs = {mode: f.step(y[k], lf["tau"][k], flags) for mode, f in filters.items()}
+        assert outs["mean"].bias_hat_b[2] == outs["hold"].bias_hat_b[2]
+
+
 def test_non_finite_measurements_only_drop_their_channel() -> None:
     f = make_wave_filter(_config("mmae"))
     y, lf = _scenario(50, seed=5)
