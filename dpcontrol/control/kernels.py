@@ -427,14 +427,13 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
     ydd_b[2] = ydd2
     couple = int(const[C_COUPLING, 0])
     _rotate_acceleration(couple, yd_m[2], yd_b, ydd_b)
-    ff_b = np.empty(3)  # the feed-forward's acceleration: ÿ_M, led by T_u y⃛_M through the actuators' lag
-    _feedforward(const, leads, rd, yd_m, ydd0, ydd1, ydd2, c, s, ydd_b, ff_b)
+    z = np.empty(3)  # starts as the feed-forward's acceleration: ÿ_M, led by T_u y⃛_M through the actuators' lag
+    _feedforward(const, leads, rd, yd_m, ydd0, ydd1, ydd2, c, s, ydd_b, z)
     ed_b = out[OUT_VELOCITY_ERROR:OUT_VELOCITY_ERROR + 3]
-    z = np.empty(3)
     tau = out[OUT_TAU:OUT_TAU + 3]
     for i in range(3):
         ed_b[i] = nu[i] - yd_b[i]
-        z[i] = ff_b[i] - b1[i] * ed_b[i] - b0[i] * e_b[i]  # (17)
+        z[i] = z[i] - b1[i] * ed_b[i] - b0[i] * e_b[i]  # (17)
     known = np.zeros(3)
     _known_coupling(couple, mask, z, yd_b, nu, const, known)
     for i in range(3):
