@@ -53,6 +53,14 @@ class LoneReceiver:
             self.north.append(out.y_ned[0])
             self.raised.append(self.alarms.is_active(CODE))
 
+    def episode(self, quiet_s: float, factor: float, noisy_s: float, after_s: float) -> None:
+        """``quiet_s`` of the configured noise, ``noisy_s`` of ``factor`` times it, ``after_s`` of it again [s]."""
+        self.run(quiet_s)
+        self.noise_m = factor * SIGMA_M
+        self.run(noisy_s)
+        self.noise_m = SIGMA_M
+        self.run(after_s)
+
     def between(self, t0_s: float, t1_s: float) -> np.ndarray:
         t = np.array(self.t_s)
         return (t > t0_s + 1e-9) & (t <= t1_s + 1e-9)
@@ -60,11 +68,7 @@ class LoneReceiver:
 
 def test_a_lone_receiver_ten_times_noisier_is_de_weighted_and_taken_back_within_two_and_a_half_seconds() -> None:
     scene = LoneReceiver()
-    scene.run(30.0)
-    scene.noise_m = 10.0 * SIGMA_M
-    scene.run(60.0)
-    scene.noise_m = SIGMA_M
-    scene.run(30.0)
+    scene.episode(30.0, 10.0, 60.0, 30.0)
     weight = np.array(scene.weight)
     north = np.array(scene.north)
     raised = np.array(scene.raised)
@@ -87,11 +91,7 @@ def test_other_noise_factors_are_de_weighted_in_proportion() -> None:
     weights = {}
     for factor in (5.0, 20.0):
         scene = LoneReceiver(seed=2)
-        scene.run(20.0)
-        scene.noise_m = factor * SIGMA_M
-        scene.run(30.0)
-        scene.noise_m = SIGMA_M
-        scene.run(10.0)
+        scene.episode(20.0, factor, 30.0, 10.0)
         weight = np.array(scene.weight)
         weights[factor] = float(np.median(weight[scene.between(25.0, 50.0)]))
         assert np.all(weight[scene.between(52.5, 60.0)] == 1.0)
@@ -120,11 +120,7 @@ def test_healthy_lone_receivers_are_never_de_weighted() -> None:
 def test_taken_back_from_the_prediction_then_faded() -> None:
     # the estimate dead-reckoned 2 m off while de-weighted: back from there, not in a step to the receiver
     scene = LoneReceiver(prediction=(2.0, 0.0))
-    scene.run(20.0)
-    scene.noise_m = 10.0 * SIGMA_M
-    scene.run(30.0)
-    scene.noise_m = SIGMA_M
-    scene.run(60.0)
+    scene.episode(20.0, 10.0, 30.0, 60.0)
     north = np.array(scene.north)
     back = next(t for t, w in zip(scene.t_s, scene.weight, strict=True) if t > 50.0 and w == 1.0)
     assert abs(np.mean(north[scene.between(back, back + 3.0)]) - 2.0) < 0.3
