@@ -238,19 +238,24 @@ def correction_metrics(result: RunResult, bands: Sequence[float] = (0.02, 0.05))
     return out
 
 
+def timed_run(mapping: dict[str, Any], overrides: dict[str, Any]) -> tuple[RunResult, float, np.ndarray]:
+    """Run the scenario ``mapping`` with the controller ``overrides``; the result, its wall time [s] and its recorded
+    columns (``result.columns.data`` up to the rows written)."""
+    simulation = build_simulation(parse_scenario(mapping, file=mapping["name"]), overrides=overrides)
+    start = time.perf_counter()
+    result = simulation.run()
+    wall = time.perf_counter() - start
+    return result, wall, result.columns.data[: result.columns.rows]
+
+
 def run(vessel: str, seed: int, controller: str, loading: Loading = Loading(),
         bands: Sequence[float] = (0.02, 0.05), *, control: dict[str, Any] | None = None) -> dict[str, Any]:
     """One run; returns its per-correction metrics, the final MRAC surge-mass error and the wall time. ``control``:
     keys added to both controllers' ``control`` section (e.g. ``{"actuator_time_constant_s": 0}``)."""
     mapping = scenario_mapping(vessel, seed, loading)
-    simulation = build_simulation(parse_scenario(mapping, file=mapping["name"]),
-                                  overrides=controller_overrides({**CONTROLLERS[controller], **(control or {})},
+    result, wall, data = timed_run(mapping, controller_overrides({**CONTROLLERS[controller], **(control or {})},
                                                                  loading))
-    start = time.perf_counter()
-    result = simulation.run()
-    wall = time.perf_counter() - start
     c = result.columns
-    data = c.data[: c.rows]
     mass = data[:, c.index("mrac_mass_surge_kg")]
     true = data[:, c.index("true_surge_mass_kg")]
     ok = np.isfinite(mass) & np.isfinite(true)

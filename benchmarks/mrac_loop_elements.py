@@ -39,7 +39,6 @@ import argparse
 import json
 import math
 import sys
-import time
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -50,7 +49,6 @@ from scipy.linalg import solve_continuous_lyapunov
 from dpcontrol.control.mrac import default_mrac_config
 from dpcontrol.models.vessels import BUILTIN_VESSELS, VesselData
 from sim_plant.bench.lockstep import controller_mapping
-from sim_plant.bench.run import build_simulation
 from sim_plant.scenario import parse_scenario
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -125,12 +123,8 @@ def run_case(vessel_name: str, seed: int, case: str, loading: mrac_loading.Loadi
         overrides["sensors"] = controller_mapping(parse_scenario(other, file=other["name"]))["sensors"]
     if "filter" not in elements:
         overrides["estimator"] = {"kind": "raw"}
-    simulation = build_simulation(parse_scenario(mapping, file=mapping["name"]), overrides=overrides)
-    start = time.perf_counter()
-    result = simulation.run()
-    wall = time.perf_counter() - start
+    result, wall, data = mrac_loading.timed_run(mapping, overrides)
     c = result.columns
-    data = c.data[: c.rows]
     t = data[:, c.index("t_s")]
     ratio = data[:, c.index("mrac_mass_surge_kg")] / data[:, c.index("true_surge_mass_kg")]
     tau = data[:, c.index("tau_x_n")]
