@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sim_plant.bench.failsafe import VESSELS, Case, Outcome, run_case
+from sim_plant.bench.failsafe import VESSELS, Case, Outcome, run_case, true_distances
 from sim_plant.bench.lockstep import ProbedRun
 from sim_plant.faults import GNSS_FAULTS, GYRO_FAULTS, ROT_FAULTS
 
@@ -63,8 +63,8 @@ def _phases(case: Case, run: ProbedRun) -> str:
     """The largest true LF position / heading distance from the set-point before the fault (from 60 s), in it and
     after it (``--phases``; CyberShip II in mm)."""
     t = run.t_s
-    position = np.hypot(run.col("north_m"), run.col("east_m")) * (1.0 if case.vessel == "supply" else 1000.0)
-    heading = np.degrees(np.abs(np.angle(np.exp(1j * run.col("heading_rad")))))
+    position, heading = true_distances(run)
+    position = position * (1.0 if case.vessel == "supply" else 1000.0)
     end = case.start_s + case.fault_duration_s
     parts = []
     for name, mask in (("before", (t >= 60.0) & (t < case.start_s)), ("in", (t >= case.start_s) & (t <= end)),

@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from dpbase.frames import ssa_array
 from sim_plant.bench.lockstep import ProbedRun
 from sim_plant.bench.run import build_simulation
 from sim_plant.scenario import parse_scenario
@@ -186,14 +187,20 @@ class Outcome:
         return self.max_position_m <= v["position_bound_m"] and self.max_heading_deg <= v["heading_bound_deg"]
 
 
+def true_distances(run: ProbedRun) -> tuple[np.ndarray, np.ndarray]:
+    """The true LF position's distance from the set-point (the origin) [m] and the heading's [deg], per sample."""
+    position = np.hypot(run.col("north_m"), run.col("east_m"))
+    heading = np.degrees(np.abs(ssa_array(run.col("heading_rad"))))
+    return position, heading
+
+
 def run_case(case: Case, settled_s: float = 60.0) -> tuple[ProbedRun, Outcome]:
     """Run ``case`` in lockstep and measure it against the operator's set-point (not the reference model's
     output, which is undefined in standby: a vessel drifting in standby must count)."""
     run = ProbedRun.run(build_simulation(parse_scenario(case.scenario(), file=f"<{case.vessel} {case.fault}>")))
     t = run.t_s
     window = t >= settled_s - 1e-9
-    position = np.hypot(run.col("north_m"), run.col("east_m"))  # the set-point is the origin
-    heading = np.degrees(np.abs(np.angle(np.exp(1j * run.col("heading_rad")))))
+    position, heading = true_distances(run)
     changes = run.result.mode_changes
     engaged = [c for c in changes if c[2] == "auto_position"]
     first_engaged = engaged[0][0] if engaged else math.inf
