@@ -57,7 +57,10 @@ damping matrices, so one rule serves a 1.3 m model (CyberShip II) and a 260 m ta
   passes that to the thrusters — and ``bias_yaw_drift_time_s`` = 100 s in yaw, whose mean wave and wind
   moment changes with every heading change); Markov with time constant T: ``Q3 = 2σ_b²/T``
   (stationary standard deviation σ_b). Surge and sway share one value so the model is invariant
-  to the vessel-parallel rotation.
+  to the vessel-parallel rotation. Start-up learning: for ``bias_learning_s`` = ``15·√(L/g)`` after the filter
+  starts with the bias at zero (42 s on the supply vessel), the steady-state kinds run the gains of
+  ``bias_learning_factor`` = 10 × Q3, so that the force carrying a vessel in standby is learnt before DP is
+  engaged (:meth:`WaveFilterConfig.bias_learning_time`; docs/fault-handling.md, "Entering DP while drifting").
 * Measurement noise: ``σ_pos = 0.002·L`` (GNSS/DGNSS at full scale), heading 0.1° (gyro).
 * Wave frequencies: the MMAE bank (seed 000's eight models, 0.3–1.35 rad/s), the single-model kinds' ω0
   (0.8 rad/s) and the PEM/RPEM ω0 range (0.2–2 rad/s) are full-scale seas' (seed 000 "from calm and glassy to
@@ -221,6 +224,14 @@ class WaveFilterConfig:
         ``bias_yaw_drift_time_s`` (the slowly varying wave drift and gusts it followed averaged out;
         :meth:`~dpcontrol.estimation.wave_filter.FrameFilter._dead_reckoning_bias`), ``hold`` keeps it as it was
         when the measurement was lost.
+    bias_learning_s : float or None
+        Start-up learning of the bias [s] (kinds mmae, kf steady-state and raw): for this long after the filter
+        starts (or restarts from a fix, with the bias at zero) its gains are those of the design model whose bias
+        intensity Q3 is ``bias_learning_factor`` times the rule's, then the rule's (None: ``15·√(L/g)``, 42 s
+        for the 76 m supply vessel, 5.4 s for CyberShip II; off for ``raw``; 0: off). See
+        :meth:`bias_learning_time`.
+    bias_learning_factor : float
+        Q3's factor during the start-up learning (≥ 1, default 10; 1: off) [-].
     process_noise_intensity : tuple of 9 float or None
         Explicit ``diag(Q1, Q2, Q3)``; overrides the four rules above.
     position_noise_std_m, heading_noise_std_rad : float or None
@@ -293,6 +304,8 @@ class WaveFilterConfig:
     bias_drift_time_s: float | None = None
     bias_yaw_drift_time_s: float = 100.0
     dead_reckoning_bias: str = "mean"
+    bias_learning_s: float | None = None
+    bias_learning_factor: float = 10.0
     process_noise_intensity: tuple[float, ...] | None = None
     position_noise_std_m: float | None = None
     heading_noise_std_rad: float | None = None
@@ -372,6 +385,9 @@ class WaveFilterConfig:
         if self.bias_drift_time_s is not None:
             check_number(self.bias_drift_time_s, "bias_drift_time_s", minimum=0.0, exclusive_minimum=True)
         check_number(self.bias_yaw_drift_time_s, "bias_yaw_drift_time_s", minimum=0.0, exclusive_minimum=True)
+        if self.bias_learning_s is not None:
+            check_number(self.bias_learning_s, "bias_learning_s", minimum=0.0)
+        check_number(self.bias_learning_factor, "bias_learning_factor", minimum=1.0)
         if self.process_noise_intensity is not None:
             object.__setattr__(self, "process_noise_intensity",
                                _tuple_of(self.process_noise_intensity, 9, "process_noise_intensity",
@@ -511,6 +527,31 @@ class WaveFilterConfig:
         if self.bias_drift_time_s is not None:
             return float(self.bias_drift_time_s)
         return 360.0 * math.sqrt(self.length_scale_m / _GRAVITY_MPS2)
+
+    def bias_learning_time(self) -> float:
+        """T_learn of the start-up bias learning [s]: ``bias_learning_s`` or ``15·√(L/g)`` (Froude scaled, 42 s
+        on the 76 m supply vessel: past a 20 s standby and the first 20 s of DP); 0 when off (``bias_learning_factor``
+        1 too; by default for ``raw``).
+
+        Why: a filter starts with the bias at zero and its steady-state covariance, the accuracy of a bias that
+        has been tracked for many drift times, while the bias is unknown by the whole environmental force; its
+        gains, made for a bias that changes by σ_b in ``bias_drift_time_s``, then take minutes to learn it (the
+        supply vessel's sway bias at 38 % of the environment's after 20 s of standby in the failsafe campaign's
+        `--seed 2` run 4, its position estimate 0.36 m behind the drifting vessel; docs/fault-handling.md). A
+        time-varying Kalman filter started with the bias's prior variance has large gains at first; the
+        steady-state bank approximates that with the gains of a Q3 ``bias_learning_factor`` times larger for
+        T_learn, then its own.
+        """
+        if self.bias_learning_factor == 1.0:
+            return 0.0
+        if self.bias_learning_s is not None:
+            return float(self.bias_learning_s)
+        if self.kind == "raw":
+            # without wave states the WF motion reaches the LF states: the larger gains pass it to the bias (a
+            # drifting supply vessel's bias error 2–5× the steady gains' in the sea of
+            # tests/unit/test_estimation_wave_filter.py)
+            return 0.0
+        return 15.0 * math.sqrt(self.length_scale_m / _GRAVITY_MPS2)
 
     def bias_intensity(self) -> np.ndarray:
         """Q3 (3,) [N²/s, N²/s, N²·m²/s]."""

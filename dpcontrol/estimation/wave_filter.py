@@ -177,12 +177,13 @@ class WaveFilter(Protocol):
         ...
 
 
-def build_design_model(config: WaveFilterConfig, omega_rad_s: float | None) -> DesignModel:
-    """The design model of ``config`` at ω0 (None: without wave states)."""
+def build_design_model(config: WaveFilterConfig, omega_rad_s: float | None, bias_factor: float = 1.0) -> DesignModel:
+    """The design model of ``config`` at ω0 (None: without wave states); ``bias_factor`` multiplies the bias
+    intensity Q3 (the start-up learning's model, :meth:`WaveFilterConfig.bias_learning_time`)."""
     return dp_design_model(
         config.mass_matrix, config.damping_matrix, omega_rad_s, zeta=config.zeta,
         wf_intensity=None if omega_rad_s is None else config.wf_intensity(omega_rad_s),
-        force_intensity=config.force_intensity(), bias_intensity=config.bias_intensity(),
+        force_intensity=config.force_intensity(), bias_intensity=bias_factor * config.bias_intensity(),
         bias_time_constants_s=config.bias_time_constants_s)
 
 
@@ -531,6 +532,19 @@ class BankWaveFilter(FrameFilter):
         self._Phi = np.ascontiguousarray(self.Phi, dtype=float)
         self._Gamma = np.ascontiguousarray(self.Gamma, dtype=float)
         self._K_slots = [np.ascontiguousarray(self.K[i]) for i in range(len(codes))]          # (N, n, 3) per pattern
+        # Start-up learning of the bias (WaveFilterConfig.bias_learning_time): the gains of the design with Q3 ×
+        # bias_learning_factor for T_learn after a reset. Only the gains change: the weights' likelihood, the
+        # predicted measurement's variance and the reported covariance stay the bank's own (the learning design's
+        # position and heading innovation variances differ from them by little: the bias is not measured).
+        self._learning_time_s = config.bias_learning_time()
+        self._learning_left_s = 0.0
+        self._K_learning: list[np.ndarray] = []
+        if self._learning_time_s > 0.0:
+            factor = config.bias_learning_factor
+            learning = [pattern_gains(d.Phi, m.H, d.Qd, R)
+                        for d, m in ((discretize(m.A, m.B, m.E, m.Qc, config.sample_time_s), m)
+                                     for m in (build_design_model(config, w, factor) for w in omegas))]
+            self._K_learning = [np.ascontiguousarray(np.stack([g[code].K for g in learning])) for code in codes]
         self._P_post_diag_slots = [np.ascontiguousarray(self.P_post_diag[i]) for i in range(len(codes))]
         self._S9 = np.ascontiguousarray(self.S_prior.reshape(N, 9))
         self._omegas_k = np.zeros(N)                  # Σ p_i ω_i in the kernel (zeros for raw: unused)
@@ -560,6 +574,7 @@ class BankWaveFilter(FrameFilter):
             self.band_likelihood.restart()   # the pose jump is no sea-state evidence
         self._initialized = True
         self._restart_bias_mean()
+        self._learning_left_s = self._learning_time_s   # the bias starts at zero: learn it
         self._blend_and_write(PATTERN_NONE)
         self.output.innovation[:] = 0.0
         self.output.measured = (False, False, False)
@@ -584,11 +599,15 @@ class BankWaveFilter(FrameFilter):
              measured: tuple[bool, bool, bool] = (True, True, True)) -> WaveFilterOutput:
         code = self._read_inputs(y_ned, tau_b, measured)
         slot = self._code_slot[code]
+        gains = self._K_slots
+        if self._learning_left_s > 0.0:  # the start-up learning's gains (see __init__)
+            self._learning_left_s = max(0.0, self._learning_left_s - self.dt_s)
+            gains = self._K_learning
         # 1.–2. frame heading (the measured heading, else the predicted total heading) and correction with
         # the pattern's steady-state gains, x̂ = x̄ + K ε (seed 002 eq. (51))
         self._psi_frame = bank_correct(code, self._y, self._psi_frame, self._heading, self._wf0_k, self._rot_start,
                                        self._rot_blocks, 1 if self._band_weights else 0, self.x, self._H,
-                                       self._K_slots[slot], self.p, self._x_post, self._eps, self._residual)
+                                       gains[slot], self.p, self._x_post, self._eps, self._residual)
         if code != PATTERN_NONE and self.kind == "mmae":
             self._update_weights(slot, code)
         self._dead_reckoning_bias(self._x_post, self.p, code)
@@ -671,7 +690,8 @@ class BankWaveFilter(FrameFilter):
     def state_dict(self) -> dict[str, Any]:
         state = self._frame_state()
         state.update({"omegas_rad_s": [float(w) for w in self.omegas], "x": self.x.tolist(),
-                      "weights": self.p.tolist(), "log_weights": self._log_w.tolist()})
+                      "weights": self.p.tolist(), "log_weights": self._log_w.tolist(),
+                      "bias_learning_left_s": self._learning_left_s})
         if self.band_likelihood is not None:
             state["likelihood"] = self.band_likelihood.state_dict()
         return state
@@ -691,6 +711,9 @@ class BankWaveFilter(FrameFilter):
             implied = np.exp(log_w - log_w.max())
             if not np.allclose(implied / implied.sum(), p / p.sum(), rtol=1e-6, atol=1e-12):
                 raise ValueError("wave filter state: log_weights do not match weights")
+        learning_left = float(state.get("bias_learning_left_s", 0.0))
+        if not math.isfinite(learning_left) or learning_left < 0.0:
+            raise ValueError("wave filter state: bias_learning_left_s must be finite and >= 0")
         band = self.band_likelihood
         if band is not None and state.get("likelihood") is not None:
             band.load_state_dict(state["likelihood"])      # ValueError before anything changed
@@ -708,6 +731,8 @@ class BankWaveFilter(FrameFilter):
         self._psi_frame = float(state["psi_frame_rad"])
         self._initialized = bool(state.get("initialized", True))
         self._load_bias_mean(state)
+        # (a state saved before the start-up learning existed, or by a bank without it, has learnt: 0)
+        self._learning_left_s = min(learning_left, self._learning_time_s)
         self._blend_and_write(PATTERN_NONE)
 
 
