@@ -64,6 +64,7 @@ _DEFAULT_SPEED_100M_MPS = 0.5
 _DEFAULT_ACCEL_MPS2 = 0.01
 _DEFAULT_YAW_RATE_100M_RADPS = math.radians(1.0)
 _DEFAULT_YAW_ACCEL_100M_RADPS2 = math.radians(0.05)
+ENTRIES = ("auto", "stop", "glide")  # ReferenceModelConfig.entry
 
 
 @dataclass(frozen=True)
@@ -84,6 +85,13 @@ class ReferenceModelConfig:
         Largest heading rate [rad/s].
     max_yaw_accel_radps2 : float
         Largest heading acceleration [rad/s²].
+    entry : {"auto", "stop", "glide"}
+        How an entry into DP from standby starts the reference at the estimated pose: ``stop`` at rest (DP
+        holds her where she is and its controller brakes the drift she had, as far as her thrust allows),
+        ``glide`` at the estimated velocity, which the model then decelerates over its natural period (no
+        braking force at the entry). ``auto``: the runtime chooses per controller (``glide`` for an MRAC, whose
+        learning gate is built around the glide, and for a course-keeping autopilot, whose ship is under way;
+        ``stop`` otherwise). See docs/fault-handling.md, "Entering DP while drifting".
     """
 
     natural_period_s: tuple[float, float, float] = (150.0, 150.0, 150.0)
@@ -92,8 +100,11 @@ class ReferenceModelConfig:
     max_accel_mps2: float = 0.01
     max_yaw_rate_radps: float = math.radians(1.0)
     max_yaw_accel_radps2: float = math.radians(0.05)
+    entry: str = "auto"
 
     def __post_init__(self) -> None:
+        if self.entry not in ENTRIES:
+            raise ValueError(f"entry must be one of {', '.join(ENTRIES)}, got {self.entry!r}")
         periods = tuple(float(p) for p in self.natural_period_s)
         zetas = tuple(float(z) for z in self.relative_damping)
         if len(periods) != 3 or len(zetas) != 3:
@@ -162,7 +173,8 @@ def reference_config_from_mapping(value: object, vessel: VesselData, path: str =
 
     Keys (all optional): ``natural_period_s`` (number or list of 3), ``relative_damping`` (number or
     list of 3), ``max_speed_mps``, ``max_accel_mps2``, ``max_yaw_rate_degps``,
-    ``max_yaw_accel_degps2``.
+    ``max_yaw_accel_degps2``, ``entry`` (``auto``, the default: per controller; ``stop``; ``glide``;
+    see :class:`ReferenceModelConfig`).
 
     Raises
     ------
@@ -194,6 +206,7 @@ def reference_config_from_mapping(value: object, vessel: VesselData, path: str =
         max_yaw_rate_radps=math.radians(positive("max_yaw_rate_degps", math.degrees(base.max_yaw_rate_radps))),
         max_yaw_accel_radps2=math.radians(
             positive("max_yaw_accel_degps2", math.degrees(base.max_yaw_accel_radps2))),
+        entry=section.string("entry", base.entry, choices=ENTRIES),
     )
     section.finish()
     return config

@@ -191,6 +191,13 @@ class DpController:
         if self._mrac is not None and self._mrac.adapting and self.estimator.force_model:
             self._mass_adaptive = MassAdaptiveEstimator(self.estimator, np.diag(vessel.mass_matrix))
             self.estimator = self._mass_adaptive
+        # How an entry from standby starts the reference (ReferenceModelConfig.entry): at rest, so that DP stops
+        # the drift the vessel had in standby at once, unless the controller needs the glide (an MRAC's learning
+        # gate waits for the reference to rest after it; an autopilot's ship is under way, her turn no drift)
+        entry = config.guidance.entry
+        if entry == "auto":
+            entry = "glide" if self._mrac is not None or self.rudder_steering else "stop"
+        self._entry_at_rest = entry == "stop"
         self.thrusters = vessel.thrusters
         with _section_of_config("allocation", config):
             self.allocator = ThrustAllocator(vessel.thrusters, self.dt_s, **dict(config.allocation))
@@ -358,6 +365,12 @@ class DpController:
         """The outcomes of the requests taken at or after ``t_s`` [s], oldest first (at most
         :data:`RECENT_REQUESTS`)."""
         return [outcome for outcome in self.recent_requests if outcome.t_s >= t_s]
+
+    @property
+    def entry(self) -> str:
+        """How an entry into DP from standby starts the reference: ``stop`` (at rest) or ``glide`` (at the
+        estimated velocity); ``guidance.entry`` with ``auto`` resolved for this controller."""
+        return "stop" if self._entry_at_rest else "glide"
 
     @property
     def mass_adaptation(self) -> MassAdaptation | None:
@@ -683,16 +696,27 @@ class DpController:
         return self._thrusters_insufficient(t_s, wanted) or None
 
     def _bumpless_entry(self) -> None:
-        """Entering DP from standby: the reference starts at the estimate, moving as the vessel moves."""
+        """Entering DP from standby: the reference starts at the estimate, at rest (``guidance.entry`` ``stop``)
+        or moving as the vessel moves (``glide``).
+
+        Why at rest by default: a vessel drifting in standby (the supply vessel at 0.14 m/s after 20 s in the
+        failsafe campaign's 1.4× sea) is carried on by a gliding reference over its natural period (1.2 m more
+        in that run) before DP pushes back; at rest, the controller's damping brakes her at once, up to what
+        the drives give (their rate limits and the jerk limit of the fed-forward acceleration still apply).
+        Measured in docs/fault-handling.md, "Entering DP while drifting".
+        """
         estimate = self.out.estimate
         assert estimate is not None
-        nu_ned = body_to_ned(estimate.nu_hat_b, float(estimate.eta_hat_ned[2]))
-        limits = self.config.guidance
-        speed = math.hypot(nu_ned[0], nu_ned[1])
-        if speed > limits.max_speed_mps:  # never start the reference faster than it may move
-            nu_ned[:2] *= limits.max_speed_mps / speed
-        nu_ned[2] = max(-limits.max_yaw_rate_radps, min(limits.max_yaw_rate_radps, nu_ned[2]))
-        self.reference_model.reset(estimate.eta_hat_ned, nu_ned)
+        if self._entry_at_rest:
+            self.reference_model.reset(estimate.eta_hat_ned)
+        else:
+            nu_ned = body_to_ned(estimate.nu_hat_b, float(estimate.eta_hat_ned[2]))
+            limits = self.config.guidance
+            speed = math.hypot(nu_ned[0], nu_ned[1])
+            if speed > limits.max_speed_mps:  # never start the reference faster than it may move
+                nu_ned[:2] *= limits.max_speed_mps / speed
+            nu_ned[2] = max(-limits.max_yaw_rate_radps, min(limits.max_yaw_rate_radps, nu_ned[2]))
+            self.reference_model.reset(estimate.eta_hat_ned, nu_ned)
         self._accel_ff_ned = None
         self.controller.reset()
         if not self._setpoint_given:

@@ -19,6 +19,8 @@ from dpcontrol.guidance import (
     reference_config_from_mapping,
 )
 from dpcontrol.models.vessels import BUILTIN_VESSELS, SHUTTLE_TANKER, SUPPLY
+from sim_plant.bench.run import build_simulation
+from sim_plant.scenario import builtin_scenario_path, load_scenario
 
 TANKER_LIKE = ReferenceModelConfig(natural_period_s=(200.0, 200.0, 200.0), relative_damping=(1.0, 1.0, 1.0),
                                    max_speed_mps=0.5, max_accel_mps2=0.01, max_yaw_rate_radps=math.radians(1.0),
@@ -172,3 +174,22 @@ def test_defaults_are_froude_scaled_and_config_keys_are_validated() -> None:
         reference_config_from_mapping({"speed": 1.0}, SUPPLY)
     with pytest.raises(ConfigError, match=r"guidance\.natural_period_s"):
         reference_config_from_mapping({"natural_period_s": [100, -1, 100]}, SUPPLY)
+
+
+def test_the_entry_rule_is_read_and_resolved_per_controller() -> None:
+    """``guidance.entry``: ``auto`` by default, ``stop`` or ``glide`` when given; the runtime resolves ``auto`` to a
+    glide for an MRAC (its learning gate waits for the glide to end) and a rudder autopilot, to a stop otherwise."""
+    assert reference_config_from_mapping(None, SUPPLY).entry == "auto"
+    assert reference_config_from_mapping({"entry": "glide"}, SUPPLY).entry == "glide"
+    with pytest.raises(ConfigError, match=r"guidance\.entry"):
+        reference_config_from_mapping({"entry": "brake"}, SUPPLY)
+    with pytest.raises(ValueError, match="entry"):
+        ReferenceModelConfig(entry="brake")
+    expected = {"supply-seed001": "stop", "cs2-seed000": "stop", "bluelady-seed004": "stop",
+                "tanker-seed003": "glide", "mariner-seed002": "glide"}
+    for name, entry in expected.items():
+        simulation = build_simulation(load_scenario(builtin_scenario_path(name)))
+        assert simulation.controller.entry == entry, name
+    simulation = build_simulation(load_scenario(builtin_scenario_path("supply-seed001")),
+                                  overrides={"guidance": {"entry": "glide"}})
+    assert simulation.controller.entry == "glide"
