@@ -62,8 +62,9 @@ def test_the_default_mrac_learns_nothing_from_the_entry_and_keeps_the_vessel(exa
     scenarios of the vessels whose adaptation ran away from the entry: no estimate reaches a bound, no position
     deviation warning (CyberShip II: 0.05 m; supply: 1.05 m, 1.05 deg; they were 1.6 m / 180 deg and 22 m / 64 deg).
     CyberShip II with seed 003's reference model: her seed scenario's 10 m move (8 ship lengths, at the guidance's
-    speed limit) makes the default guided law take her unmodelled quadratic surge drag for inertia (surge mass
-    2.9x nominal, 0.27 m; docs/campaigns.md, "One reference")."""
+    speed limit) makes the default guided law take forces it does not model for inertia (surge mass 2.9x nominal,
+    0.27 m; part of it her quadratic surge drag: with the ``drag`` coupling 2.2x, 0.11 m; docs/campaigns.md,
+    "One reference")."""
     result = BENCHMARK.run_example(example, control={"kind": "mrac", "reference": reference})
     measured = f"{example}: deviation at most {result['position_max_m']:.2f} m, {result['heading_max_deg']:.2f} deg"
     assert "control.adaptation" not in result["alarms"], measured
