@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -45,8 +46,8 @@ def _six_azimuth_vessel() -> VesselData:
     return replace(SUPPLY, name="supply_6az", thrusters=thrusters)
 
 
-def bench_config() -> DaemonConfig:
-    """The configuration of the benchmark vessel (six azimuths, MMAE N = 8, MRAC)."""
+def bench_config(control: Mapping[str, Any] | None = None) -> DaemonConfig:
+    """The configuration of the benchmark vessel (six azimuths, MMAE N = 8, MRAC; ``control`` another section)."""
     mapping: dict[str, Any] = {
         "vessel_id": "bench",
         "vessel": _six_azimuth_vessel(),
@@ -56,7 +57,7 @@ def bench_config() -> DaemonConfig:
         "sensors": [{"name": "gnss1", "kind": "position", "transport": "serial", "rate_hz": 10, "sigma_m": 0.5},
                     {"name": "gyro1", "kind": "heading", "transport": "serial", "rate_hz": 10, "sigma_deg": 0.1}],
         "estimator": {"kind": "mmae", "omegas_rad_s": [0.3, 0.45, 0.6, 0.75, 0.9, 1.05, 1.2, 1.35]},
-        "control": {"kind": "mrac"},
+        "control": dict(control) if control is not None else {"kind": "mrac"},
     }
     return parse_config(mapping, file="<bench>")
 

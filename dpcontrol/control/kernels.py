@@ -33,7 +33,9 @@ surge, sway, yaw along the last axis; the PID's layout is given with its constan
   after an entry into DP before anything is learnt [s] (0: no wait) and ``C_GUIDED`` = (1.0: y_M is the
   guidance's reference itself, 0.0: the second-order model (15) driven by it, unused, unused),
   ``C_NOISE_FACTOR`` k and ``C_NOISE_TIME`` T_n [s] of the measured dead zone (:func:`dead_zone_width`),
-  ``C_LEAD`` the actuator time constant T_u [s] of the feed-forward's lead (:func:`mrac_step`; 0: none);
+  ``C_LEAD`` the actuator time constant T_u [s] of the feed-forward's lead (:func:`mrac_step`; 0: none),
+  ``C_INTEGRAL`` κ_I [1/s] of the integral action ``K_I = κ_I â₂β₀`` (:func:`_integral_force`; 0: none) and
+  ``C_TRACKING`` its anti-windup's 1/T_t [1/s];
 * ``state`` (``S_ROWS``, 3): ``S_Y_M``/``S_YD_M`` the reference model y_M, ẏ_M in NED [m, rad; m/s,
   rad/s], ``S_A2``/``S_A1`` the estimates â₂, â₁, ``S_COMMAND``/``S_ACHIEVED`` the last command and
   the force the allocator achieved for it [N, N, N·m], ``S_FLAGS`` = (reference model initialised,
@@ -41,7 +43,8 @@ surge, sway, yaw along the last axis; the PID's layout is given with its constan
   unbroken) since the entry, counted up to ``C_ENTRY_REST`` [s], ``S_NOISE`` the mean square of the
   normalised error s̄ while the reference rests [m², m², rad²], ``S_QUIET`` how long it has rested, counted
   up to ``C_NOISE_TIME`` [s], and ``S_WEATHER`` the weather force compensated, ``w = b̂ + τ̂_wind``, low-passed
-  over ``C_NOISE_TIME`` [N, N, N·m] (:func:`dead_zone_width`);
+  over ``C_NOISE_TIME`` [N, N, N·m] (:func:`dead_zone_width`), ``S_INTEGRAL`` the integral force τ_I
+  [N, N, N·m] and ``S_DUTY`` its low-passed saturation side d̄ [-];
 * ``out`` (``OUT_SIZE``,): ``OUT_TAU`` τ [N, N, N·m], ``OUT_ERROR`` e_b = Rᵀ(ψ̂)(η̂ − y_M) [m, m, rad],
   ``OUT_VELOCITY_ERROR`` ė_b [m/s, m/s, rad/s] and ``OUT_PARAMETERS`` (â₂, â₁ after the adaptation,
   y_M before the advance: the order of ``PARAMETER_NAMES + REFERENCE_MODEL_NAMES``).
@@ -67,11 +70,15 @@ C_DRAG = 27  # the quadratic damping coefficients of the optional drag term [N·
 C_NOISE_FACTOR = 28  # k of the measured dead zone d = max(d₀, k·s̄_rms) (0: the fixed d₀ only) [-]
 C_NOISE_TIME = 29  # the averaging time of s̄_rms at rest [s] (> 0)
 C_LEAD = 30  # T_u, the time constant of the actuators' first-order lag the feed-forward leads by [s] (0: no lead)
-C_ROWS = 31
+C_INTEGRAL = 31  # κ_I, the integral gain per unit of the PD's stiffness, K_I = κ_I â₂β₀ [1/s] (0: no integrator)
+C_TRACKING = 32  # 1/T_t, the integral's back-calculation gain and the saturation side's low-pass rate [1/s]
+C_ROWS = 33
 #: ``C_COUPLING[0]`` bits: which known terms of the nominal model enter the law (see :func:`_known_coupling`)
 COUPLE_INERTIA, COUPLE_ROTATION, COUPLE_CORIOLIS, COUPLE_DAMPING, COUPLE_DRAG = 1, 2, 4, 8, 16
 S_Y_M, S_YD_M, S_A2, S_A1, S_COMMAND, S_ACHIEVED, S_FLAGS, S_REST, S_NOISE, S_QUIET, S_WEATHER = range(11)
-S_ROWS = 11
+S_INTEGRAL = 11  # the integral force τ_I [N, N, N·m] (with ``C_INTEGRAL``)
+S_DUTY = 12  # the low-passed saturation side d̄ of the integral's anti-windup [-] (as the PID's ``P_DUTY``)
+S_ROWS = 13
 OUT_TAU, OUT_ERROR, OUT_VELOCITY_ERROR, OUT_PARAMETERS = 0, 3, 6, 9
 OUT_REFERENCE_MODEL = OUT_PARAMETERS + 6  # y_M, the last three of the parameters
 OUT_SIZE = 18
@@ -82,6 +89,10 @@ OUT_SIZE = 18
 ERROR_INPUT = -1
 MASS_CHANGED = 8
 SATURATION_TOLERANCE = 1e-6
+#: |low-passed saturation side| above which a DOF counts as saturated at low frequency: short on one side more
+#: than half of the time, i.e. the low-frequency demand (the median of a demand with a symmetric wave-frequency
+#: part) is itself beyond what the thrusters give; below it only wave-frequency peaks are cut
+SATURATED_DUTY = 0.5
 
 
 @kernel(UniTuple(f8, 4)(f8, f8, f8))
@@ -355,6 +366,43 @@ def _feedforward(const: np.ndarray, leads: bool, rd: np.ndarray, yd_m: np.ndarra
     ff_b[2] += lead[2] * (b0[2] * (rd[2] - yd_m[2]) - b1[2] * ydd2)
 
 
+@kernel(f8(f8_2d, f8_2d, i8, f8, i8, f8))
+def _integral_force(const: np.ndarray, state: np.ndarray, i: int, error: float, mask: int, dt: float) -> float:
+    """Advance DOF i's integral force ``τ̇_I = −K_I e``, ``K_I = κ_I â₂β₀`` (the PD's stiffness of eq. (25) times
+    κ_I = ``integral_ratio`` · ω_M, the rule of :func:`dpcontrol.control.pid.pole_placement_gains`), and return the
+    weather force it compensates, ``−τ_I`` [N, N·m] (subtracted in (18) where b̂ would be).
+
+    The integral action of the MRAC where the estimator gives no bias (seed 004's Kalman–Bucy filter): seed 003's
+    law compensates the wave filter's bias, whose integral over the LF error is the commercial PD's integral
+    action; without it the mean current and wind force leave an offset w/P. Anti-windup as the PID's
+    (:func:`pid_step`): the side on which the allocator fell short of the last command, low-passed over T_t
+    (``C_TRACKING``); only where it stays beyond :data:`SATURATED_DUTY` — the low-frequency demand itself beyond
+    capability, not the wave-frequency peaks cut or the allocator's rounding — is nothing integrated further into
+    that side and the integral pulled back towards the force achieved. A DOF not controlled is cleared.
+    """
+    integral = state[S_INTEGRAL]
+    duty = state[S_DUTY]
+    if not (mask >> i) & 1:
+        integral[i] = 0.0
+        duty[i] = 0.0
+        return 0.0
+    increment = -const[C_INTEGRAL, i] * state[S_A2, i] * const[C_BETA0, i] * error * dt
+    if state[S_FLAGS, 1] != 0.0:  # the force achieved for the last command is known
+        command = state[S_COMMAND, i]
+        shortfall = state[S_ACHIEVED, i] - command
+        side = 0.0
+        if abs(shortfall) > SATURATION_TOLERANCE * (1.0 + abs(command)):
+            side = 1.0 if shortfall > 0.0 else -1.0
+        rate = const[C_TRACKING, i]
+        duty[i] += (1.0 - math.exp(-dt * rate)) * (side - duty[i])
+        if abs(duty[i]) > SATURATED_DUTY and side * duty[i] > 0.0:
+            if increment * duty[i] < 0.0:  # conditional integration: nothing further into the saturated side
+                increment = 0.0
+            increment += dt * rate * shortfall  # back-calculation towards the force achieved
+    integral[i] += increment
+    return -integral[i]
+
+
 @kernel(i8(f8, f8_1d, f8_1d, f8_1d, f8_1d, f8_1d, f8_1d, f8_1d, i8, f8_2d, f8_2d, f8_1d))
 def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind: np.ndarray, r: np.ndarray,
               rd: np.ndarray, rdd: np.ndarray, mask: int, const: np.ndarray, state: np.ndarray, out: np.ndarray) -> int:
@@ -436,8 +484,10 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
         z[i] = z[i] - b1[i] * ed_b[i] - b0[i] * e_b[i]  # (17)
     known = np.zeros(3)
     _known_coupling(couple, mask, z, yd_b, nu, const, known)
+    weather = np.empty(3)  # the weather force compensated: b̂, or −τ_I with the integral action
     for i in range(3):
-        tau[i] = a2[i] * z[i] + a1[i] * nu[i] + known[i] - bias[i] - wind[i] if (mask >> i) & 1 else 0.0  # (18)
+        weather[i] = _integral_force(const, state, i, e_b[i], mask, dt) if const[C_INTEGRAL, i] > 0.0 else bias[i]
+        tau[i] = a2[i] * z[i] + a1[i] * nu[i] + known[i] - weather[i] - wind[i] if (mask >> i) & 1 else 0.0  # (18)
 
     excited = 0
     mass_changed = False
@@ -464,7 +514,7 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
             # normalised error signal s̄ = bᵀGx / g₁₂ with a continuous dead zone, then bᵀGx = g₁₂ s̄_dz
             s_bar = e_b[i] + const[C_G_RATIO, i] * ed_b[i]
             resting = not gate and abs(yd_b[i]) <= const[C_VELOCITY, i]
-            excess = abs(s_bar) - dead_zone_width(const, state, i, s_bar, dt, resting, bias[i] + wind[i],
+            excess = abs(s_bar) - dead_zone_width(const, state, i, s_bar, dt, resting, weather[i] + wind[i],
                                                   a2[i] * b0[i])
             signal = const[C_G12, i] * math.copysign(excess, s_bar) if excess > 0.0 else 0.0
             rest = state[S_REST, i]
@@ -524,10 +574,6 @@ G_ROWS = 17
 P_INTEGRATOR, P_MASS, P_DAMPING, P_LIMIT = 1, 2, 4, 8
 P_INTEGRAL, P_COMMAND, P_ACHIEVED, P_FLAGS, P_DUTY = range(5)
 P_ROWS = 5
-#: |low-passed saturation side| above which a DOF counts as saturated at low frequency: short on one side more
-#: than half of the time, i.e. the low-frequency demand (the median of a demand with a symmetric wave-frequency
-#: part) is itself beyond what the thrusters give; below it only wave-frequency peaks are cut
-SATURATED_DUTY = 0.5
 PID_OUT_SIZE = 9
 
 

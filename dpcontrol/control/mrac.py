@@ -214,12 +214,14 @@ from dpcontrol.control.kernels import (
     C_GAMMA_C,
     C_GAMMA_M,
     C_GUIDED,
+    C_INTEGRAL,
     C_LEAD,
     C_MASS,
     C_NOISE_FACTOR,
     C_NOISE_TIME,
     C_OMEGA,
     C_ROWS,
+    C_TRACKING,
     C_VELOCITY,
     C_ZETA,
     COUPLE_CORIOLIS,
@@ -239,7 +241,9 @@ from dpcontrol.control.kernels import (
     S_A2,
     S_ACHIEVED,
     S_COMMAND,
+    S_DUTY,
     S_FLAGS,
+    S_INTEGRAL,
     S_NOISE,
     S_REST,
     S_ROWS,
@@ -248,7 +252,7 @@ from dpcontrol.control.kernels import (
     damping_ceiling,
     mrac_step,
 )
-from dpcontrol.control.pid import default_natural_period_s
+from dpcontrol.control.pid import INTEGRAL_ACTIONS, default_natural_period_s
 from dpcontrol.guidance.reference_model import Reference, ReferenceModel, ReferenceModelConfig, default_reference_config
 from dpcontrol.models.vessels import VesselData
 
@@ -334,7 +338,8 @@ class MracConfig:
         What the reference y_M of eq. (17) is: ``"model"`` seed 003's second-order model (15) (``natural_period_s``,
         ``relative_damping``) driven by the guidance's η_d, ``"guidance"`` the guidance's η_d, η̇_d, η̈_d
         themselves (one reference: the pose the operator sees, no second lag; β₀, β₁ then set only the error
-        dynamics (19)).
+        dynamics (19)). The configuration's default is ``"guidance"`` (docs/campaigns.md, "One reference");
+        this dataclass's and :func:`default_mrac_config`'s is seed 003's ``"model"``.
     mass_coupling : 3 floats
         The nominal off-diagonal inertia (M₁₂, M₁₃, M₂₃) [kg, kg·m, kg·m] (M symmetric; the plant symmetrises
         M_A): known, not adapted (default 0; :func:`default_mrac_config` takes the vessel's).
@@ -355,6 +360,15 @@ class MracConfig:
         thrusters deliver, which the feed-forward leads by ``T_u y⃛_M`` (see the module docstring, "The actuators'
         lag"; with ``reference: model`` only, not for a step-driven model, whose acceleration jumps; default 0: no
         lead, seed 003's law; ``thrusters`` in the configuration: :func:`actuator_time_constants`).
+    integral_action : {"bias_feedforward", "integrator"}
+        Where the law's integral action comes from: ``"bias_feedforward"`` (seed 003: the wave filter's bias
+        estimate compensated, ``τ = u − b̂``), ``"integrator"`` an integral force ``τ̇_I = −K_I e``,
+        ``K_I = integral_ratio · ω_M · â₂β₀`` (the PID's rule, a decade below ω_M, retuned with the PD's
+        stiffness), compensated instead of b̂, with conditional integration as anti-windup
+        (:func:`dpcontrol.control.kernels.mrac_step`). The configuration's default is the integrator with an
+        estimator that estimates no bias (``kalman_bucy``), the bias feed-forward otherwise.
+    integral_ratio : float
+        K_I over the PD's stiffness times ω_M [-] (> 0; default 0.1, as the PID's pole placement).
     """
 
     mass_nominal: Triple
@@ -381,6 +395,8 @@ class MracConfig:
     damping_bound_kappa: float = 0.9
     quadratic_damping: Triple = (0.0, 0.0, 0.0)
     actuator_time_constant_s: Triple = (0.0, 0.0, 0.0)
+    integral_action: str = "bias_feedforward"
+    integral_ratio: float = 0.1
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "mass_nominal", _triple("mass_nominal", self.mass_nominal))
@@ -415,6 +431,10 @@ class MracConfig:
             raise ValueError(f"regressor must be one of {REGRESSORS}, got {self.regressor!r}")
         if self.reference not in REFERENCES:
             raise ValueError(f"reference must be one of {REFERENCES}, got {self.reference!r}")
+        if self.integral_action not in INTEGRAL_ACTIONS:
+            raise ValueError(f"integral_action must be one of {INTEGRAL_ACTIONS}, got {self.integral_action!r}")
+        if not (math.isfinite(self.integral_ratio) and self.integral_ratio > 0.0):
+            raise ValueError(f"integral_ratio must be finite and > 0, got {self.integral_ratio!r}")
         object.__setattr__(self, "mass_coupling", _triple("mass_coupling", self.mass_coupling, positive=False))
         object.__setattr__(self, "quadratic_damping", _triple("quadratic_damping", self.quadratic_damping,
                                                               allow_zero=True))
@@ -582,6 +602,9 @@ _DEAD_ZONE_YAW_RAD = math.radians(0.05)
 # k of the measured dead zone (kernels.dead_zone_width): three standard deviations of the error the weather causes
 # at rest, a bound a Gaussian disturbance error exceeds with a probability of 0.3 %
 _DEAD_ZONE_NOISE_FACTOR = 3.0
+#: The built-in vessels whose mass changes in operation (seed 003's shuttle tanker loads 2.66×): the default
+#: ``mass_changes`` of the MRAC's configuration (the daemon's configuration also for a vessel ``base:``d on one).
+LOADING_VESSELS: tuple[str, ...] = ("shuttle_tanker", "shuttle_tanker_full")
 _GATING_FRACTION = 0.05
 _ENTRY_REST_PERIODS = 1.0  # rest after an entry into DP before anything is learnt, in reference-model periods
 # How long a DOF reads "adapting" after its gate last opened (MracController.adaptation_states), in reference-model
@@ -597,7 +620,7 @@ _ADAPTING_HOLD_MIN_S = 2.0
 
 def default_mrac_config(vessel: VesselData, natural_period_s: float | None = None,
                         guidance: ReferenceModelConfig | None = None, *, step_driven: bool = False,
-                        reference: str = "model") -> MracConfig:
+                        reference: str = "model", mass_changes: bool | None = None) -> MracConfig:
     """MRAC defaults for a vessel: nominal parameters from diag(M), diag(D), seed 003 reference model.
 
     The reference-model period is 200 s for the shuttle tankers (seed 003) and the Froude-scaled
@@ -606,8 +629,13 @@ def default_mrac_config(vessel: VesselData, natural_period_s: float | None = Non
     move through ``guidance`` (default: the vessel's :func:`default_reference_config`), see
     :func:`reference_excitation`. ``step_driven``: the reference model is driven by the raw set-point
     steps, as in seed 003's single-DOF study (:mod:`sim_plant.bench.offloading_case`), not by a guidance.
-    ``reference``: see :class:`MracConfig` (``guidance``: Γ and the gating from the guidance's own move).
+    ``reference``: see :class:`MracConfig` (``guidance``: Γ and the gating from the guidance's own move, and the
+    measured dead zone unless ``mass_changes``). ``mass_changes``: the vessel's mass changes in operation (cargo):
+    the dead zone stays the fixed d₀, since a wrong mass inflates the error the measured one is sized from
+    (default: the vessel is one of :data:`LOADING_VESSELS`).
     """
+    if mass_changes is None:
+        mass_changes = vessel.name in LOADING_VESSELS
     period = float(natural_period_s) if natural_period_s is not None else default_natural_period_s(vessel)
     periods = (period, period, period)
     mass = tuple(float(v) for v in np.diag(vessel.mass_matrix))
@@ -641,7 +669,8 @@ def default_mrac_config(vessel: VesselData, natural_period_s: float | None = Non
         natural_period_s=periods,
         relative_damping=zetas,
         dead_zone=(_DEAD_ZONE_PER_LENGTH * length, _DEAD_ZONE_PER_LENGTH * length, _DEAD_ZONE_YAW_RAD),
-        dead_zone_noise_factor=_DEAD_ZONE_NOISE_FACTOR if reference == "guidance" and not step_driven else 0.0,
+        dead_zone_noise_factor=(_DEAD_ZONE_NOISE_FACTOR if reference == "guidance" and not step_driven
+                                and not mass_changes else 0.0),
         accel_threshold=accel,  # type: ignore[arg-type]
         velocity_threshold=velocity,  # type: ignore[arg-type]
         entry_rest_s=0.0 if step_driven else _ENTRY_REST_PERIODS * period,
@@ -679,18 +708,21 @@ def mrac_config_from_mapping(value: object, vessel: VesselData, path: str = "con
     ``damping_nominal``, ``adaptation_gain_mass``, ``adaptation_gain_damping``, ``dead_zone``,
     ``accel_threshold``, ``velocity_threshold`` (number or 3 numbers; yaw in rad), ``lyapunov_q``
     (2), ``mass_bounds_factor`` (2), ``damping_bounds_factor`` (2), ``leakage_per_s``, ``entry_rest_s``, ``regressor``
-    (``reference`` | ``plant``), ``reference`` (``model`` | ``guidance``, see :class:`MracConfig`), ``adapt``
+    (``reference`` | ``plant``), ``reference`` (``guidance`` | ``model``, see :class:`MracConfig`; default
+    ``guidance``: one reference, the guidance's, as the operator sees it), ``mass_changes`` (bool: the vessel's
+    mass changes in operation, default for :data:`LOADING_VESSELS`; see :func:`default_mrac_config`), ``adapt``
     (bool, default true; false = the fixed PD of seed 003 eq. (25) at ``mass_nominal``),
     ``actuator_time_constant_s`` (number or 3 numbers >= 0 [s], or ``thrusters``: :func:`actuator_time_constants`;
-    default 0).
+    default 0), ``integral_action`` (``bias_feedforward`` | ``integrator``), ``integral_ratio`` (number > 0).
     """
     section = Section.of(value, path)
     section.string("kind", "mrac", choices=("mrac",))
     period = section.raw("natural_period_s", None)
     if period is not None:
         period = section.number("natural_period_s", minimum=0.0, exclusive_minimum=True)
-    reference = section.string("reference", "model", choices=REFERENCES)
-    base = default_mrac_config(vessel, period, reference=reference)
+    reference = section.string("reference", "guidance", choices=REFERENCES)
+    mass_changes = section.boolean("mass_changes", vessel.name in LOADING_VESSELS)
+    base = default_mrac_config(vessel, period, reference=reference, mass_changes=mass_changes)
     kwargs: dict[str, Any] = {}
     for key, length in (("relative_damping", 3), ("mass_nominal", 3), ("damping_nominal", 3),
                         ("adaptation_gain_mass", 3), ("adaptation_gain_damping", 3), ("dead_zone", 3),
@@ -707,6 +739,9 @@ def mrac_config_from_mapping(value: object, vessel: VesselData, path: str = "con
                                                       minimum=0.0)
     kwargs["entry_rest_s"] = section.number("entry_rest_s", base.entry_rest_s, minimum=0.0)
     kwargs["adapt"] = section.boolean("adapt", True)
+    kwargs["integral_action"] = section.string("integral_action", base.integral_action, choices=INTEGRAL_ACTIONS)
+    kwargs["integral_ratio"] = section.number("integral_ratio", base.integral_ratio, minimum=0.0,
+                                              exclusive_minimum=True)
     kwargs["regressor"] = section.string("regressor", "reference", choices=REGRESSORS)
     coupling = section.raw("coupling", None)
     if isinstance(coupling, bool):
@@ -810,6 +845,11 @@ class MracController:
         const[C_NOISE_FACTOR] = config.dead_zone_noise_factor
         const[C_NOISE_TIME] = config.natural_period_s
         const[C_LEAD] = config.actuator_time_constant_s
+        if config.integral_action == "integrator":
+            const[C_INTEGRAL] = [config.integral_ratio * 2.0 * math.pi / t for t in config.natural_period_s]
+            # T_t = √(T_i T_d) (Åström & Hägglund's rule, as the PID's): T_i = 1/κ_I, T_d = β₁/β₀
+            const[C_TRACKING] = [math.sqrt(k * b0 / b1) for k, b0, b1 in zip(const[C_INTEGRAL].tolist(), beta0,
+                                                                               beta1, strict=True)]
         self._const = const
         self._state = np.zeros((S_ROWS, 3))
         self._state[S_A2] = m_nom
@@ -1008,6 +1048,8 @@ class MracController:
         state[S_FLAGS, 1] = 0.0
         state[S_REST] = 0.0  # the entry's glide teaches nothing: learn after entry_rest_s of rest
         state[S_FLAGS, 2] = 0.0  # the weather force's mean starts again at the next step's
+        state[S_INTEGRAL] = 0.0  # the integral force starts from zero at each entry, as the PID's
+        state[S_DUTY] = 0.0
         self._excited_at_s[:] = (-math.inf, -math.inf, -math.inf)  # a new entry has learnt nothing yet
 
     def reset_parameters(self) -> None:
@@ -1018,7 +1060,7 @@ class MracController:
         self._set_mass(m0, m1, m2)
 
     def state_dict(self) -> dict[str, Any]:
-        """JSON-able state: parameter estimates, reference model, saturation memory."""
+        """JSON-able state: parameter estimates, reference model, saturation memory, integral force."""
         state = self._state
         return {
             "mass_hat": state[S_A2].tolist(),
@@ -1030,6 +1072,8 @@ class MracController:
             "last_achieved_b": state[S_ACHIEVED].tolist() if state[S_FLAGS, 1] else None,
             "rest_s": state[S_REST].tolist(),
             "dead_zone_mean_square": state[S_NOISE].tolist(),
+            "integral_force_b": state[S_INTEGRAL].tolist(),
+            "saturation_duty": state[S_DUTY].tolist(),
         }
 
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
@@ -1051,6 +1095,11 @@ class MracController:
             noise = floats3("dead_zone_mean_square", state.get("dead_zone_mean_square", [0.0] * 3))
             if min(noise) < 0.0:
                 raise ValueError(f"dead_zone_mean_square must be >= 0, got {list(noise)}")
+            # the integral force (absent from the states saved before 2026-12-08: none)
+            integral = floats3("integral_force_b", state.get("integral_force_b", [0.0] * 3))
+            duty = floats3("saturation_duty", state.get("saturation_duty", [0.0] * 3))
+            if max(abs(v) for v in duty) > 1.0:
+                raise ValueError(f"saturation_duty must be within [-1, 1], got {list(duty)}")
         except (KeyError, TypeError, ValueError) as error:
             raise ValueError(f"invalid MRAC state: {error}") from None
         const = self._const
@@ -1068,4 +1117,6 @@ class MracController:
         ours[S_FLAGS, 0] = float(initialised)
         ours[S_REST] = rest
         ours[S_NOISE] = noise
+        ours[S_INTEGRAL] = integral
+        ours[S_DUTY] = duty
 

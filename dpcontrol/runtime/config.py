@@ -20,6 +20,7 @@ from dpbase.yamlfile import load_yaml, read_yaml_file
 from dpcontrol.allocation.allocator import allocator_kwargs_from_mapping
 from dpcontrol.allocation.consequence import FailureGroup
 from dpcontrol.control import CONTROL_KINDS, ControlConfig, DefaultControl, control_config_from_mapping, default_control
+from dpcontrol.control.mrac import LOADING_VESSELS
 from dpcontrol.estimation import WaveFilterConfig
 from dpcontrol.estimation.filter_config import DEFAULT_OMEGA0_RAD_S, DEFAULT_OMEGAS_RAD_S, LengthScaledGrid
 from dpcontrol.guidance import ReferenceModelConfig, reference_config_from_mapping
@@ -91,6 +92,9 @@ class SensorRoute:
 ESTIMATOR_KINDS = ("mmae", "kf", "rpem", "pem", "raw", "kalman_bucy", "heading_kf")
 #: The sections that set how the controller behaves, as opposed to the installation (vessel_id, transports,
 #: sensors, zenoh, recorder, state, loop): what a scenario's ``controller:`` or an example configuration gives.
+#: Estimators that estimate no bias (seed 004's Kalman–Bucy filter: positions and velocities only): an MRAC on
+#: them integrates the error itself (``integral_action: integrator``) unless configured otherwise.
+ESTIMATORS_WITHOUT_BIAS = ("kalman_bucy",)
 CONTROLLER_SECTIONS = ("estimator", "control", "guidance", "allocation", "hub", "fallback", "thruster_monitor",
                        "consequence", "deviation")
 
@@ -455,6 +459,11 @@ def _parse_control(section: Section, vessel: VesselData, builtin: str | None, es
     kind = str(section.string("kind", VesselDefault(default.section["kind"]), choices=CONTROL_KINDS))
     section._read.update(section.data)  # (the kind's own parser reads and checks every key)
     data = dict(section.data) if given else {**default.section, **section.data}  # (the file's keys override)
+    if kind == "mrac" and builtin in LOADING_VESSELS:  # (a vessel of its own on a loading tanker's base)
+        data.setdefault("mass_changes", True)
+    if kind == "mrac" and estimator_kind in ESTIMATORS_WITHOUT_BIAS:
+        # no bias estimate to compensate: the MRAC's integral action is its own integrator (MracConfig)
+        data.setdefault("integral_action", "integrator")
     if builtin is not None and builtin != vessel.name:  # (a vessel of the file's own, on a built-in's base)
         default = DefaultControl(default.section, f"based on {builtin}: {default.reason}")
     return ControlSettings(kind, control_config_from_mapping(data, vessel, section.path), default, configured=given)

@@ -10,6 +10,7 @@ import yaml
 
 from dpbase.schema import ConfigError
 from dpcontrol.cli import main
+from dpcontrol.control import MracConfig
 from dpcontrol.runtime.config import RealtimeSettings, ReplicaSettings, load_config, parse_config
 from dpcontrol.service.daemon import LoopStats
 
@@ -349,3 +350,31 @@ def test_check_config_says_which_controller_runs_whether_configured_and_why(
     assert main(["check-config", str(ROOT / "deploy" / "config" / "shuttle_tanker.yaml")]) == 0
     assert "control mrac: configured (control.kind; the default for vessel shuttle_tanker is mrac)" \
         in capsys.readouterr().out
+
+
+def test_the_mrac_follows_the_guidance_and_fits_the_vessel_and_the_estimator() -> None:
+    """``control: {kind: mrac}``: the guidance's reference (one reference, no second lag); the measured dead zone
+    except on a vessel whose mass changes (the loading tankers, and a vessel based on one); its own integrator
+    where the estimator gives no bias (the Blue Lady's Kalman–Bucy filter), the bias fed forward otherwise."""
+    def mrac(example: str, **changes: object) -> MracConfig:
+        mapping = _without_control(example)
+        mapping["control"] = {"kind": "mrac"}
+        mapping.update(changes)
+        config = parse_config(mapping).control.config
+        assert isinstance(config, MracConfig)
+        return config
+
+    tanker, supply, blue_lady = mrac("shuttle_tanker.yaml"), mrac("supply.yaml"), mrac("blue_lady.yaml")
+    assert tanker.reference == supply.reference == blue_lady.reference == "guidance"
+    assert tanker.dead_zone_noise_factor == 0.0 and supply.dead_zone_noise_factor == 3.0
+    assert mrac("shuttle_tanker.yaml", vessel={"base": "shuttle_tanker"}).dead_zone_noise_factor == 0.0
+    assert blue_lady.integral_action == "integrator" and supply.integral_action == tanker.integral_action \
+        == "bias_feedforward"
+    assert mrac("blue_lady.yaml", estimator={"kind": "mmae"}).integral_action == "bias_feedforward"
+    given = _without_control("blue_lady.yaml")
+    given["control"] = {"kind": "mrac", "integral_action": "bias_feedforward", "reference": "model",
+                        "mass_changes": True}
+    config = parse_config(given).control.config
+    assert isinstance(config, MracConfig)
+    assert (config.integral_action, config.reference, config.dead_zone_noise_factor) == ("bias_feedforward",
+                                                                                         "model", 0.0)
