@@ -47,8 +47,9 @@ from 1× to 3× the true mass in 12 h of station keeping). This implementation u
   the reference rests the only thing to "learn" is noise;
 * a **dead zone** on the normalised error signal ``s̄ = bᵀGx / g₁₂ = e + (g₂₂/g₁₂) ė`` [m or
   rad]: no adaptation while ``|s̄| ≤ d`` and ``s̄ − d·sign(s̄)`` outside (continuous). ``d = d₀`` (fixed, 0.02 % of
-  L) or, with ``dead_zone_noise_factor`` k > 0 (the default with ``reference: guidance``), sized from the
-  disturbance as robust adaptive control prescribes (Ioannou & Sun, *Robust Adaptive Control*, §8.5.4):
+  L) or, with ``dead_zone_noise_factor`` k > 0 (the default with ``reference: guidance`` on a vessel of constant
+  mass), sized from the disturbance as robust adaptive control prescribes (Ioannou & Sun, *Robust Adaptive
+  Control*, §8.5.4):
   ``d = max(d₀, k·s̄_rms + |w − w̄|/P)``, ``s̄_rms`` the RMS of s̄ measured once the reference has rested a
   reference-model period (the error is then all weather: waves, estimator noise, the force the bias estimate has
   not taken up), k = 3, and ``|w − w̄|/P`` the change of the compensated weather force ``w = b̂ + τ̂_wind`` over
