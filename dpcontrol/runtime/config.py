@@ -90,11 +90,11 @@ class SensorRoute:
 
 
 ESTIMATOR_KINDS = ("mmae", "kf", "rpem", "pem", "raw", "kalman_bucy", "heading_kf")
-#: The sections that set how the controller behaves, as opposed to the installation (vessel_id, transports,
-#: sensors, zenoh, recorder, state, loop): what a scenario's ``controller:`` or an example configuration gives.
 #: Estimators that estimate no bias (seed 004's Kalman–Bucy filter: positions and velocities only): an MRAC on
 #: them integrates the error itself (``integral_action: integrator``) unless configured otherwise.
 ESTIMATORS_WITHOUT_BIAS = ("kalman_bucy",)
+#: The sections that set how the controller behaves, as opposed to the installation (vessel_id, transports,
+#: sensors, zenoh, recorder, state, loop): what a scenario's ``controller:`` or an example configuration gives.
 CONTROLLER_SECTIONS = ("estimator", "control", "guidance", "allocation", "hub", "fallback", "thruster_monitor",
                        "consequence", "deviation")
 
