@@ -414,7 +414,8 @@ def mrac_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind
     seed 003's diagonal law). With the actuator lead (``C_LEAD`` T_u > 0, model (15) only) the acceleration in z is
     ``ÿ_M + T_u y⃛_M``, ``y⃛_M = β₀(η̇_d − ẏ_M) − β₁ÿ_M`` the derivative of (15) [m/s³, m/s³, rad/s³] rotated
     into body axes: through the actuators' lag ``1/(1 + T_u s)`` the force delivered is the desired compensation
-    ``â₂ÿ_M`` the law's regressor assumes (see :mod:`dpcontrol.control.mrac`, "The actuators' lag").
+    ``â₂ÿ_M`` the law's regressor assumes (see :mod:`dpcontrol.control.mrac`, "The actuators' lag"). With the
+    integral action (``C_INTEGRAL`` > 0) ``−τ_I`` of :func:`_integral_force` takes the place of b̂.
 
     Parameters
     ----------
