@@ -366,6 +366,31 @@ def _feedforward(const: np.ndarray, leads: bool, rd: np.ndarray, yd_m: np.ndarra
     ff_b[2] += lead[2] * (b0[2] * (rd[2] - yd_m[2]) - b1[2] * ydd2)
 
 
+@kernel(f8(f8, f8, f8, f8_1d, i8, f8, f8))
+def _antiwindup(increment: float, command: float, achieved: float, duty: np.ndarray, i: int, rate: float,
+                dt: float) -> float:
+    """The integral's increment of DOF i after the anti-windup of the PID and the MRAC's integrator [N, N·m].
+
+    The side on which the allocator fell short of the last ``command`` (``achieved`` above it: +1, below: −1,
+    met: 0) is low-passed over T_t into ``duty[i]`` (``rate`` = 1/T_t [1/s]; not filtered in a DOF without T_t,
+    i.e. without integral). Where it stays beyond :data:`SATURATED_DUTY` on the side the DOF is short now — the
+    low-frequency demand itself beyond capability, not the wave-frequency peaks cut or the allocator's rounding —
+    nothing is integrated further into that side (conditional integration) and the integral is pulled back
+    towards the force achieved (back-calculation).
+    """
+    shortfall = achieved - command
+    side = 0.0
+    if abs(shortfall) > SATURATION_TOLERANCE * (1.0 + abs(command)):
+        side = 1.0 if shortfall > 0.0 else -1.0
+    alpha = 1.0 - math.exp(-dt * rate) if rate > 0.0 else 1.0
+    duty[i] += alpha * (side - duty[i])
+    if abs(duty[i]) > SATURATED_DUTY and side * duty[i] > 0.0:
+        if increment * duty[i] < 0.0:
+            increment = 0.0
+        increment += dt * rate * shortfall
+    return increment
+
+
 @kernel(f8(f8_2d, f8_2d, i8, f8, i8, f8))
 def _integral_force(const: np.ndarray, state: np.ndarray, i: int, error: float, mask: int, dt: float) -> float:
     """Advance DOF i's integral force ``τ̇_I = −K_I e``, ``K_I = κ_I â₂β₀`` (the PD's stiffness of eq. (25) times
@@ -375,10 +400,7 @@ def _integral_force(const: np.ndarray, state: np.ndarray, i: int, error: float, 
     The integral action of the MRAC where the estimator gives no bias (seed 004's Kalman–Bucy filter): seed 003's
     law compensates the wave filter's bias, whose integral over the LF error is the commercial PD's integral
     action; without it the mean current and wind force leave an offset w/P. Anti-windup as the PID's
-    (:func:`pid_step`): the side on which the allocator fell short of the last command, low-passed over T_t
-    (``C_TRACKING``); only where it stays beyond :data:`SATURATED_DUTY` — the low-frequency demand itself beyond
-    capability, not the wave-frequency peaks cut or the allocator's rounding — is nothing integrated further into
-    that side and the integral pulled back towards the force achieved. A DOF not controlled is cleared.
+    (:func:`_antiwindup`, T_t from ``C_TRACKING``). A DOF not controlled is cleared.
     """
     integral = state[S_INTEGRAL]
     duty = state[S_DUTY]
@@ -388,17 +410,8 @@ def _integral_force(const: np.ndarray, state: np.ndarray, i: int, error: float, 
         return 0.0
     increment = -const[C_INTEGRAL, i] * state[S_A2, i] * const[C_BETA0, i] * error * dt
     if state[S_FLAGS, 1] != 0.0:  # the force achieved for the last command is known
-        command = state[S_COMMAND, i]
-        shortfall = state[S_ACHIEVED, i] - command
-        side = 0.0
-        if abs(shortfall) > SATURATION_TOLERANCE * (1.0 + abs(command)):
-            side = 1.0 if shortfall > 0.0 else -1.0
-        rate = const[C_TRACKING, i]
-        duty[i] += (1.0 - math.exp(-dt * rate)) * (side - duty[i])
-        if abs(duty[i]) > SATURATED_DUTY and side * duty[i] > 0.0:
-            if increment * duty[i] < 0.0:  # conditional integration: nothing further into the saturated side
-                increment = 0.0
-            increment += dt * rate * shortfall  # back-calculation towards the force achieved
+        increment = _antiwindup(increment, state[S_COMMAND, i], state[S_ACHIEVED, i], duty, i,
+                                const[C_TRACKING, i], dt)
     integral[i] += increment
     return -integral[i]
 
@@ -656,20 +669,7 @@ def pid_step(dt: float, eta: np.ndarray, nu: np.ndarray, bias: np.ndarray, wind:
         for i in range(3):
             increment = -_row_product(gains, G_KI, i, e0, e1, e2) * dt
             if known:
-                shortfall = achieved[i] - command[i]
-                side = 0.0
-                if abs(shortfall) > SATURATION_TOLERANCE * (1.0 + abs(command[i])):
-                    side = 1.0 if shortfall > 0.0 else -1.0
-                # the side low-passed over T_t (not filtered in a DOF without T_t, i.e. without integral)
-                rate = gains[G_TRACKING, i]
-                alpha = 1.0 - math.exp(-dt * rate) if rate > 0.0 else 1.0
-                duty[i] += alpha * (side - duty[i])
-                if abs(duty[i]) > SATURATED_DUTY and side * duty[i] > 0.0:
-                    # short now, on the side where the low-frequency demand is beyond capability: conditional
-                    # integration (nothing further into the saturated side) and back-calculation
-                    if increment * duty[i] < 0.0:
-                        increment = 0.0
-                    increment += dt * rate * shortfall
+                increment = _antiwindup(increment, command[i], achieved[i], duty, i, gains[G_TRACKING, i], dt)
             integral[i] += increment
             if structure & P_LIMIT:  # np.clip: NaN propagates
                 limit = gains[G_LIMIT, i]
