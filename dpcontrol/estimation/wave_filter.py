@@ -59,6 +59,7 @@ Usage::
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
@@ -66,7 +67,7 @@ import numpy as np
 
 from dpbase.frames import ssa, ssa_array
 from dpcontrol.estimation.design_model import DesignModel, StateIndex, dp_design_model
-from dpcontrol.estimation.discretize import discretize
+from dpcontrol.estimation.discretize import DiscreteModel, discretize
 from dpcontrol.estimation.filter_config import WaveFilterConfig
 from dpcontrol.estimation.kalman import KalmanFilter, SteadyStateFilter, is_covariance, pattern_code, pattern_gains
 from dpcontrol.estimation.kernels import NO_INDEX, bank_correct, bank_outputs, bank_predict, bank_predicted_measurement
@@ -185,6 +186,16 @@ def build_design_model(config: WaveFilterConfig, omega_rad_s: float | None, bias
         wf_intensity=None if omega_rad_s is None else config.wf_intensity(omega_rad_s),
         force_intensity=config.force_intensity(), bias_intensity=bias_factor * config.bias_intensity(),
         bias_time_constants_s=config.bias_time_constants_s)
+
+
+def _bank_design(config: WaveFilterConfig, omegas: Sequence[float | None], R: np.ndarray, bias_factor: float = 1.0
+                 ) -> tuple[list[DesignModel], list[DiscreteModel], list[dict[int, SteadyStateFilter]]]:
+    """A bank's design models at ``omegas``, their discretisations and each one's steady-state gains per
+    measurement pattern (``bias_factor``: see :func:`build_design_model`)."""
+    models = [build_design_model(config, w, bias_factor) for w in omegas]
+    discrete = [discretize(m.A, m.B, m.E, m.Qc, config.sample_time_s) for m in models]
+    gains = [pattern_gains(d.Phi, m.H, d.Qd, R) for d, m in zip(discrete, models, strict=True)]
+    return models, discrete, gains
 
 
 def _as_floats(value: Any, length: int, what: str) -> list[float]:
@@ -468,15 +479,12 @@ class BankWaveFilter(FrameFilter):
             raise ValueError(f"BankWaveFilter runs kinds mmae, kf (steady-state) and raw, not {kind!r}")
         self.kind = kind
         omegas: tuple[float | None, ...] = config.omegas_rad_s if kind != "raw" else (None,)
-        models = [build_design_model(config, w) for w in omegas]
+        R = config.measurement_covariance()
+        models, discrete, gains = _bank_design(config, omegas, R)
         super().__init__(config, models[0].index)
         self.models = models
         N = len(models)
         n = self.index.n
-        R = config.measurement_covariance()
-        discrete = [discretize(m.A, m.B, m.E, m.Qc, config.sample_time_s) for m in models]
-        gains: list[dict[int, SteadyStateFilter]] = [pattern_gains(d.Phi, m.H, d.Qd, R)
-                                                     for d, m in zip(discrete, models, strict=True)]
         self.H = models[0].H
         self.Phi = np.stack([d.Phi for d in discrete])                      # (N, n, n)
         self.Gamma = discrete[0].Gamma                                      # same for every model
@@ -540,10 +548,7 @@ class BankWaveFilter(FrameFilter):
         self._learning_left_s = 0.0
         self._K_learning: list[np.ndarray] = []
         if self._learning_time_s > 0.0:
-            factor = config.bias_learning_factor
-            learning = [pattern_gains(d.Phi, m.H, d.Qd, R)
-                        for d, m in ((discretize(m.A, m.B, m.E, m.Qc, config.sample_time_s), m)
-                                     for m in (build_design_model(config, w, factor) for w in omegas))]
+            _, _, learning = _bank_design(config, omegas, R, config.bias_learning_factor)
             self._K_learning = [np.ascontiguousarray(np.stack([g[code].K for g in learning])) for code in codes]
         self._P_post_diag_slots = [np.ascontiguousarray(self.P_post_diag[i]) for i in range(len(codes))]
         self._S9 = np.ascontiguousarray(self.S_prior.reshape(N, 9))
