@@ -197,7 +197,9 @@ class DpController:
         entry = config.guidance.entry
         if entry == "auto":
             entry = "glide" if self._mrac is not None or self.rudder_steering else "stop"
-        self._entry_at_rest = entry == "stop"
+        #: How an entry into DP from standby starts the reference: ``stop`` (at rest) or ``glide`` (at the estimated
+        #: velocity); ``guidance.entry`` with ``auto`` resolved for this controller.
+        self.entry: str = entry
         self.thrusters = vessel.thrusters
         with _section_of_config("allocation", config):
             self.allocator = ThrustAllocator(vessel.thrusters, self.dt_s, **dict(config.allocation))
@@ -365,12 +367,6 @@ class DpController:
         """The outcomes of the requests taken at or after ``t_s`` [s], oldest first (at most
         :data:`RECENT_REQUESTS`)."""
         return [outcome for outcome in self.recent_requests if outcome.t_s >= t_s]
-
-    @property
-    def entry(self) -> str:
-        """How an entry into DP from standby starts the reference: ``stop`` (at rest) or ``glide`` (at the
-        estimated velocity); ``guidance.entry`` with ``auto`` resolved for this controller."""
-        return "stop" if self._entry_at_rest else "glide"
 
     @property
     def mass_adaptation(self) -> MassAdaptation | None:
@@ -707,7 +703,7 @@ class DpController:
         """
         estimate = self.out.estimate
         assert estimate is not None
-        if self._entry_at_rest:
+        if self.entry == "stop":
             self.reference_model.reset(estimate.eta_hat_ned)
         else:
             nu_ned = body_to_ned(estimate.nu_hat_b, float(estimate.eta_hat_ned[2]))
